@@ -1,0 +1,91 @@
+"""Execute course notebooks in place and store them in a canonical, deterministic form.
+
+Lecture and solution notebooks are kept executed, with outputs, so that nbval can compare
+a fresh run against them. ``kalman-course execute`` is the only way they should be
+rebuilt: it runs every cell in a fresh kernel started in the notebook's folder and then
+removes everything that would differ between two runs (execution timestamps, the Python
+patch version, random cell ids).
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import time
+from pathlib import Path
+
+import nbformat
+
+#: The nbformat minor version every stored notebook is written with (4.5 has cell ids).
+NBFORMAT_MINOR = 5
+
+
+def stable_cell_id(index: int, source: str) -> str:
+    """Return a short deterministic id for a cell that has none yet."""
+    digest = hashlib.sha1(f"{index}:{source}".encode()).hexdigest()[:8]
+    return f"c{index:02d}-{digest}"
+
+
+def normalise(nb: nbformat.NotebookNode) -> nbformat.NotebookNode:
+    """Return a copy of ``nb`` without run-to-run noise.
+
+    Removes per-cell execution timing, the kernel's Python patch version and widget state,
+    gives every cell an id (kept when present), and renumbers execution counts so that
+    they only depend on the cell order.
+    """
+    nb = copy.deepcopy(nb)
+    nb.nbformat, nb.nbformat_minor = 4, NBFORMAT_MINOR
+    nb.metadata.pop("widgets", None)
+    nb.metadata["kernelspec"] = {"display_name": "Python 3", "language": "python", "name": "python3"}
+    nb.metadata["language_info"] = {"name": "python"}
+    count = 0
+    seen: set[str] = set()
+    for i, cell in enumerate(nb.cells):
+        cell.metadata.pop("execution", None)
+        cell.metadata.pop("collapsed", None)
+        cell.metadata.pop("scrolled", None)
+        cid = cell.get("id")
+        if not cid or cid in seen:
+            cell["id"] = stable_cell_id(i, cell.source)
+        seen.add(cell["id"])
+        if cell.cell_type == "code":
+            if cell.get("execution_count") is not None or cell.outputs:
+                count += 1
+                cell.execution_count = count
+                for out in cell.outputs:
+                    if "execution_count" in out:
+                        out["execution_count"] = count
+    return nb
+
+
+def write_notebook(nb: nbformat.NotebookNode, path: Path) -> None:
+    """Write ``nb`` in the canonical layout (sorted keys, one-space indent, final newline)."""
+    text = json.dumps(nb, indent=1, sort_keys=True, ensure_ascii=False) + "\n"
+    Path(path).write_text(text, encoding="utf-8")
+
+
+def execute_notebook(path: str | Path, *, timeout: int = 600, kernel_name: str = "python3") -> float:
+    """Run every cell of the notebook at ``path`` in a new kernel and store the outputs.
+
+    The kernel starts in the notebook's folder. A cell that raises stops the run and
+    leaves the file unchanged.
+
+    Returns
+    -------
+    float
+        Wall time of the run in seconds.
+    """
+    from nbclient import NotebookClient
+
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"notebook not found: {path}")
+    nb = nbformat.read(path, as_version=4)
+    start = time.perf_counter()
+    client = NotebookClient(nb, timeout=timeout, kernel_name=kernel_name,
+                            resources={"metadata": {"path": str(path.parent.resolve())}})
+    client.execute()
+    elapsed = time.perf_counter() - start
+    write_notebook(normalise(nb), path)
+    return elapsed

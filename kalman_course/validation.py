@@ -1,0 +1,88 @@
+"""Input validation shared by every filter module.
+
+Each helper takes the argument's *name* so that the error says which argument was wrong
+and what was expected, for example ``ValueError: P_hat must be symmetric (max |P - P.T| =
+0.3)``. Helpers return float arrays so callers can use them directly.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Relative tolerance used to decide that a covariance is symmetric.
+SYMMETRY_RTOL = 1e-9
+
+
+def as_vector(value, name: str, n: int | None = None) -> np.ndarray:
+    """Return ``value`` as a finite 1-D float array of length ``n`` (any length if None)."""
+    arr = np.asarray(value, dtype=float)
+    if arr.ndim != 1:
+        raise ValueError(f"{name} must be a 1-D vector of shape ({n if n is not None else 'n'},), "
+                         f"got shape {arr.shape}")
+    if n is not None and arr.shape[0] != n:
+        raise ValueError(f"{name} must have shape ({n},), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite, got NaN or inf")
+    return arr
+
+
+def as_matrix(value, name: str, shape: tuple[int | None, int | None] = (None, None)) -> np.ndarray:
+    """Return ``value`` as a finite 2-D float array whose shape matches ``shape`` (None = any)."""
+    arr = np.asarray(value, dtype=float)
+    rows, cols = shape
+    expected = f"({rows if rows is not None else 'm'}, {cols if cols is not None else 'n'})"
+    if arr.ndim != 2:
+        raise ValueError(f"{name} must be a 2-D matrix of shape {expected}, got shape {arr.shape}")
+    if (rows is not None and arr.shape[0] != rows) or (cols is not None and arr.shape[1] != cols):
+        raise ValueError(f"{name} must have shape {expected}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite, got NaN or inf")
+    return arr
+
+
+def as_covariance(value, name: str, n: int | None = None, *, positive_definite: bool = False) -> np.ndarray:
+    """Return ``value`` as an (n, n) symmetric covariance matrix.
+
+    Parameters
+    ----------
+    value : array_like, shape (n, n)
+        The candidate covariance.
+    name : str
+        Argument name used in error messages.
+    n : int, optional
+        Required dimension.
+    positive_definite : bool
+        If True, also require a Cholesky factorisation to exist (use it for R and for
+        anything that is inverted).
+
+    Raises
+    ------
+    ValueError
+        If the matrix is not square, not of size n, not finite, not symmetric, has a
+        negative diagonal, or (when requested) is not positive definite.
+    """
+    arr = np.asarray(value, dtype=float)
+    if arr.ndim != 2 or arr.shape[0] != arr.shape[1]:
+        raise ValueError(f"{name} must be a square covariance matrix, got shape {arr.shape}")
+    if n is not None and arr.shape != (n, n):
+        raise ValueError(f"{name} must have shape ({n}, {n}), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite, got NaN or inf")
+    asym = np.max(np.abs(arr - arr.T)) if arr.size else 0.0
+    scale = max(np.max(np.abs(arr)) if arr.size else 0.0, 1e-300)
+    if asym > SYMMETRY_RTOL * scale:
+        raise ValueError(f"{name} must be symmetric, max |{name} - {name}.T| = {asym:.3g}")
+    if np.any(np.diag(arr) < 0):
+        raise ValueError(f"{name} must have a non-negative diagonal (variances), got {np.diag(arr)}")
+    if positive_definite:
+        try:
+            np.linalg.cholesky(arr)
+        except np.linalg.LinAlgError:
+            raise ValueError(f"{name} must be positive definite (Cholesky failed; "
+                             f"smallest eigenvalue {np.linalg.eigvalsh(arr).min():.3g})") from None
+    return arr
+
+
+def symmetrise(P: np.ndarray) -> np.ndarray:
+    """Return (P + Pᵀ)/2: removes the round-off asymmetry a covariance update leaves."""
+    return 0.5 * (P + P.T)
