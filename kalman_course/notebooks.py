@@ -59,10 +59,14 @@ def normalise(nb: nbformat.NotebookNode) -> nbformat.NotebookNode:
     return nb
 
 
+def notebook_text(nb: nbformat.NotebookNode) -> str:
+    """Return ``nb`` as JSON in the canonical layout (sorted keys, one-space indent, final newline)."""
+    return json.dumps(nb, indent=1, sort_keys=True, ensure_ascii=False) + "\n"
+
+
 def write_notebook(nb: nbformat.NotebookNode, path: Path) -> None:
-    """Write ``nb`` in the canonical layout (sorted keys, one-space indent, final newline)."""
-    text = json.dumps(nb, indent=1, sort_keys=True, ensure_ascii=False) + "\n"
-    Path(path).write_text(text, encoding="utf-8")
+    """Write ``nb`` to ``path`` in the canonical layout."""
+    Path(path).write_text(notebook_text(nb), encoding="utf-8")
 
 
 def execute_notebook(path: str | Path, *, timeout: int = 600, kernel_name: str = "python3") -> float:

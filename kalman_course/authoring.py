@@ -1,0 +1,256 @@
+"""Build learner exercises from the reference solution notebooks.
+
+A solution notebook (``solutions/NN_name.ipynb``) is the single source of an exercise.
+Inside its code cells, a *fix region* marks reference code together with the stub that
+replaces it in the exercise::
+
+    # BEGIN SOLUTION kf_predict
+    P_check = F @ P_hat @ F.T + Q
+    # STUB
+    # P_check = F @ P_hat @ F.T  # fix this
+    # END SOLUTION
+
+The word after ``BEGIN SOLUTION`` names the grader check the stub must fail. Stub lines
+are commented out in the solution (so the solution runs); the builder uncomments them
+and drops the reference lines. Every stub must contain a ``# fix this`` comment.
+
+Grader cells are code cells tagged ``grader`` whose metadata holds
+``{"kalman_course": {"check": NAME, "points": N}}``. The builder gives them the id
+``grader-NAME`` and the nbval tag ``nbval-check-output``; every other code cell of the
+exercise is tagged ``nbval-ignore-output``, so ``pytest --nbval`` grades exactly the
+grader cells. The exercise keeps the solution's stored outputs.
+"""
+
+from __future__ import annotations
+
+import copy
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import nbformat
+
+from kalman_course.notebooks import normalise, notebook_text
+
+BEGIN_RE = re.compile(r"^(?P<indent>[ \t]*)# BEGIN SOLUTION (?P<check>[A-Za-z_][\w]*)[ \t]*$")
+STUB_RE = re.compile(r"^[ \t]*# STUB[ \t]*$")
+END_RE = re.compile(r"^[ \t]*# END SOLUTION[ \t]*$")
+FIX_THIS = "# fix this"
+
+GRADER_TAG = "grader"
+CHECK_OUTPUT_TAG = "nbval-check-output"
+IGNORE_OUTPUT_TAG = "nbval-ignore-output"
+
+
+class AuthoringError(ValueError):
+    """A solution notebook's markers or grader cells are malformed."""
+
+
+@dataclass(frozen=True)
+class Stub:
+    """One fix region of a solution notebook.
+
+    Attributes
+    ----------
+    stub_id : str
+        ``"<cell id>:<n>"``, the n-th region (from 0) of that cell.
+    check : str
+        Name of the grader check this stub must fail.
+    solution : str
+        The reference lines, as in the solution.
+    stub : str
+        The exercise lines, uncommented.
+    """
+
+    stub_id: str
+    check: str
+    solution: str
+    stub: str
+
+
+def _parse_regions(source: str, where: str):
+    """Split a cell source into text pieces and (check, solution, stub) regions."""
+    pieces: list = []
+    lines = source.split("\n")
+    i = 0
+    plain: list[str] = []
+    while i < len(lines):
+        m = BEGIN_RE.match(lines[i])
+        if STUB_RE.match(lines[i]) or END_RE.match(lines[i]):
+            raise AuthoringError(f"{where}: line {i + 1}: '{lines[i].strip()}' without '# BEGIN SOLUTION'")
+        if not m:
+            plain.append(lines[i])
+            i += 1
+            continue
+        pieces.append("\n".join(plain))
+        plain = []
+        indent, check = m["indent"], m["check"]
+        start = i
+        i += 1
+        sol: list[str] = []
+        while i < len(lines) and not STUB_RE.match(lines[i]):
+            if BEGIN_RE.match(lines[i]) or END_RE.match(lines[i]):
+                raise AuthoringError(f"{where}: region opened on line {start + 1} has no '# STUB' line")
+            sol.append(lines[i])
+            i += 1
+        if i == len(lines):
+            raise AuthoringError(f"{where}: region opened on line {start + 1} has no '# STUB' line")
+        i += 1
+        stub: list[str] = []
+        while i < len(lines) and not END_RE.match(lines[i]):
+            line = lines[i]
+            if BEGIN_RE.match(line) or STUB_RE.match(line):
+                raise AuthoringError(f"{where}: region opened on line {start + 1} has no '# END SOLUTION'")
+            if line.strip() in ("", "#"):
+                stub.append("")
+            elif line.startswith(indent + "# "):
+                stub.append(indent + line[len(indent) + 2:])
+            else:
+                raise AuthoringError(f"{where}: line {i + 1}: stub lines must be commented as "
+                                     f"'{indent}# <code>', got {line!r} (or is '# END SOLUTION' missing?)")
+            i += 1
+        if i == len(lines):
+            raise AuthoringError(f"{where}: region opened on line {start + 1} has no '# END SOLUTION'")
+        i += 1
+        if not sol:
+            raise AuthoringError(f"{where}: region opened on line {start + 1} has no solution lines")
+        if not any(FIX_THIS in line for line in stub):
+            raise AuthoringError(f"{where}: the stub of region '{check}' (line {start + 1}) "
+                                 f"has no '{FIX_THIS}' comment")
+        pieces.append((check, "\n".join(sol), "\n".join(stub)))
+    pieces.append("\n".join(plain))
+    return pieces
+
+
+def grader_info(cell) -> tuple[str, int] | None:
+    """Return (check name, points) if ``cell`` is a grader cell, else None."""
+    if cell.cell_type != "code" or GRADER_TAG not in cell.metadata.get("tags", []):
+        return None
+    meta = cell.metadata.get("kalman_course", {})
+    if "check" not in meta or not isinstance(meta.get("points"), int) or meta["points"] <= 0:
+        raise AuthoringError(f"grader cell {cell.get('id')!r} needs metadata "
+                             "kalman_course = {'check': NAME, 'points': positive int}")
+    return meta["check"], meta["points"]
+
+
+def list_stubs(nb) -> list[Stub]:
+    """Return every fix region of a solution notebook, in cell order."""
+    stubs = []
+    for cell in nb.cells:
+        if cell.cell_type != "code":
+            continue
+        regions = [p for p in _parse_regions(cell.source, f"cell {cell.get('id')}") if isinstance(p, tuple)]
+        for n, (check, sol, stub) in enumerate(regions):
+            stubs.append(Stub(f"{cell['id']}:{n}", check, sol, stub))
+    return stubs
+
+
+def render(nb, stub_ids: set[str] | None = None):
+    """Return a copy of ``nb`` with the chosen fix regions replaced by their stubs.
+
+    Parameters
+    ----------
+    nb : NotebookNode
+        A solution notebook.
+    stub_ids : set of str, optional
+        Which regions to replace (ids from :func:`list_stubs`); None means all of them.
+        Regions not chosen keep their solution lines (without markers).
+    """
+    out = copy.deepcopy(nb)
+    for cell in out.cells:
+        if cell.cell_type != "code":
+            continue
+        text, n = [], 0
+        for piece in _parse_regions(cell.source, f"cell {cell.get('id')}"):
+            if isinstance(piece, str):
+                text.append(piece)
+                continue
+            _, sol, stub = piece
+            use_stub = stub_ids is None or f"{cell['id']}:{n}" in stub_ids
+            text.append(stub if use_stub else sol)
+            n += 1
+        cell.source = "\n".join(text)
+    return out
+
+
+def chapter_of(path: Path) -> str:
+    """Return the two-digit chapter number from a file name like ``03_kalman_filter.ipynb``."""
+    m = re.match(r"^(\d\d)_", Path(path).name)
+    if not m:
+        raise AuthoringError(f"{path}: notebook names must start with a two-digit chapter, e.g. 03_name.ipynb")
+    return m.group(1)
+
+
+def build_exercise(solution_path: str | Path):
+    """Return the exercise notebook generated from the solution at ``solution_path``.
+
+    Raises
+    ------
+    AuthoringError
+        If markers are malformed, a stub names a check with no grader cell, a grader cell
+        lacks its metadata, or a grader has no stub (it could never fail).
+    """
+    solution_path = Path(solution_path)
+    nb = nbformat.read(solution_path, as_version=4)
+    stubs = list_stubs(nb)
+    if not stubs:
+        raise AuthoringError(f"{solution_path}: no '# BEGIN SOLUTION' regions")
+    ex = render(nb)
+    graders: dict[str, int] = {}
+    for cell in ex.cells:
+        if cell.cell_type != "code":
+            continue
+        tags = [t for t in cell.metadata.get("tags", []) if t not in (CHECK_OUTPUT_TAG, IGNORE_OUTPUT_TAG)]
+        info = grader_info(cell)
+        if info:
+            check, points = info
+            if check in graders:
+                raise AuthoringError(f"{solution_path}: two grader cells check {check!r}")
+            graders[check] = points
+            cell["id"] = f"grader-{check}"
+            tags.append(CHECK_OUTPUT_TAG)
+        else:
+            tags.append(IGNORE_OUTPUT_TAG)
+        cell.metadata["tags"] = tags
+    for stub in stubs:
+        if stub.check not in graders:
+            raise AuthoringError(f"{solution_path}: stub {stub.stub_id} names check {stub.check!r}, "
+                                 f"which has no grader cell (graders: {sorted(graders)})")
+    unguarded = sorted(set(graders) - {s.check for s in stubs})
+    if unguarded:
+        raise AuthoringError(f"{solution_path}: grader cells {unguarded} have no stub that should fail them")
+    ex.metadata["kalman_course"] = {
+        "chapter": chapter_of(solution_path),
+        "source": f"solutions/{solution_path.name}",
+        "graders": graders,
+        "generated": "by `kalman-course build`; edit the solution, not this file",
+    }
+    return normalise(ex)
+
+
+def build_all(solutions_dir: str | Path, exercises_dir: str | Path, *, check: bool = False) -> list[Path]:
+    """Write (or, with ``check``, compare) every exercise generated from ``solutions_dir``.
+
+    Returns
+    -------
+    list of Path
+        The exercise files that were out of date (with ``check``) or rewritten.
+    """
+    solutions_dir, exercises_dir = Path(solutions_dir), Path(exercises_dir)
+    sources = sorted(solutions_dir.glob("[0-9][0-9]_*.ipynb"))
+    if not sources:
+        raise FileNotFoundError(f"no solution notebooks (NN_name.ipynb) in {solutions_dir}")
+    changed = []
+    for src in sources:
+        target = exercises_dir / src.name
+        text = notebook_text(build_exercise(src))
+        current = target.read_text(encoding="utf-8") if target.exists() else None
+        if current != text:
+            changed.append(target)
+            if not check:
+                exercises_dir.mkdir(parents=True, exist_ok=True)
+                target.write_text(text, encoding="utf-8")
+    if check:
+        expected = {exercises_dir / s.name for s in sources}
+        changed.extend(sorted(p for p in exercises_dir.glob("[0-9][0-9]_*.ipynb") if p not in expected))
+    return changed

@@ -1,0 +1,26 @@
+"""Graders for the exercises: one check per graded skill.
+
+Grader cells call them as ``checks.<name>(learner_object)``. Each prints one constant
+line, ``<name>: passed``, or raises :class:`CheckFailed` with a hint.
+"""
+
+from kalman_course.checks.harness import SUCCESS, CheckFailed
+from kalman_course.checks.bayes import (
+    check_door_likelihood as door_likelihood,
+    check_histogram_filter as histogram_filter,
+    check_histogram_predict as histogram_predict,
+    check_histogram_update as histogram_update,
+)
+from kalman_course.checks.gaussians import (
+    check_conditional_covariance as conditional_covariance,
+    check_conditional_mean as conditional_mean,
+    check_linear_map_moments as linear_map_moments,
+)
+
+__all__ = [
+    "CheckFailed", "SUCCESS",
+    # chapter 01
+    "door_likelihood", "histogram_update", "histogram_predict", "histogram_filter",
+    # chapter 02
+    "conditional_mean", "conditional_covariance", "linear_map_moments",
+]

@@ -1,0 +1,127 @@
+"""What every check shares: running learner code quietly, comparing, failing with a hint.
+
+A check is a function decorated with :func:`check`. It receives the learner's objects
+(usually functions), runs them through :func:`call` next to the reference
+implementation, and compares with :func:`expect_close` and friends. On success it prints
+one constant line, ``<name>: passed``; on failure it raises :class:`CheckFailed`, whose
+message says what is wrong and, where the mistake is a known one, why.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import functools
+import io
+import warnings
+from typing import Callable, Iterable
+
+import numpy as np
+
+SUCCESS = "{name}: passed"
+
+
+class CheckFailed(AssertionError):
+    """A learner's code gave a wrong answer. The message names the problem and a hint."""
+
+
+def check(name: str) -> Callable:
+    """Decorate a check function: constant success line, ``CheckFailed`` messages prefixed by ``name``."""
+
+    def decorate(fn: Callable) -> Callable:
+        @functools.wraps(fn)
+        def run(*args, **kwargs):
+            try:
+                fn(*args, **kwargs)
+            except CheckFailed as exc:
+                raise CheckFailed(f"{name}: {exc}") from None
+            print(SUCCESS.format(name=name))
+
+        run.check_name = name
+        return run
+
+    return decorate
+
+
+def call(fn: Callable, *args, label: str | None = None):
+    """Call learner code with copies of ``args``, its prints and warnings silenced.
+
+    An exception inside the learner's code becomes a ``CheckFailed`` naming the function
+    and the exception, so the grader cell shows the learner's bug, not the harness.
+    """
+    if not callable(fn):
+        raise CheckFailed(f"expected a function, got {type(fn).__name__}")
+    label = label or getattr(fn, "__name__", "your function")
+    sink = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink), \
+                warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            return fn(*copy.deepcopy(args))
+    except CheckFailed:
+        raise
+    except Exception as exc:  # the learner's code may raise anything
+        raise CheckFailed(f"{label} raised {type(exc).__name__}: {exc}") from None
+
+
+def as_array(value, what: str) -> np.ndarray:
+    """Convert a learner's result to a float array or fail saying what came back."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise CheckFailed(f"{what} should be a numeric array, got {type(value).__name__}") from None
+    return arr
+
+
+def expect_shape(value, shape: tuple, what: str) -> np.ndarray:
+    """Fail unless ``value`` is an array of exactly ``shape``."""
+    arr = as_array(value, what)
+    if arr.shape != tuple(shape):
+        hint = ""
+        if arr.size == int(np.prod(shape)) and arr.ndim != len(shape):
+            hint = " (a column vector where a 1-D vector was expected? use shape (n,))"
+        raise CheckFailed(f"{what} has shape {arr.shape}, expected {tuple(shape)}{hint}")
+    if not np.all(np.isfinite(arr)):
+        raise CheckFailed(f"{what} contains NaN or inf")
+    return arr
+
+
+def expect_close(value, expected, what: str, *, rtol: float = 1e-7, atol: float = 1e-9,
+                 mistakes: Iterable[tuple[object, str]] = (), hint: str = "") -> np.ndarray:
+    """Fail unless ``value`` matches ``expected``.
+
+    Parameters
+    ----------
+    value, expected : array_like
+        The learner's result and the reference.
+    what : str
+        Name of the quantity, used in the message.
+    mistakes : iterable of (array_like, str)
+        Results of known wrong formulas with the hint to give when the learner's value
+        matches one of them.
+    hint : str
+        The hint given when no known mistake matches.
+    """
+    expected = np.asarray(expected, dtype=float)
+    arr = expect_shape(value, expected.shape, what)
+    if np.allclose(arr, expected, rtol=rtol, atol=atol):
+        return arr
+    for wrong, why in mistakes:
+        wrong = np.asarray(wrong, dtype=float)
+        if wrong.shape == arr.shape and np.allclose(arr, wrong, rtol=rtol, atol=atol):
+            raise CheckFailed(f"{what} is wrong. Hint: {why}")
+    err = np.max(np.abs(arr - expected))
+    raise CheckFailed(f"{what} differs from the reference (max abs error {err:.3g})."
+                      + (f" Hint: {hint}" if hint else ""))
+
+
+def expect_symmetric(value, what: str) -> np.ndarray:
+    """Fail unless ``value`` is a symmetric matrix (to round-off)."""
+    arr = as_array(value, what)
+    if arr.ndim != 2 or arr.shape[0] != arr.shape[1]:
+        raise CheckFailed(f"{what} should be a square matrix, got shape {arr.shape}")
+    scale = max(np.max(np.abs(arr)), 1e-300)
+    if np.max(np.abs(arr - arr.T)) > 1e-9 * scale:
+        raise CheckFailed(f"{what} is not symmetric. Hint: a covariance is always symmetric; "
+                          "check the order of the products (A @ P @ A.T, not A @ P @ A)")
+    return arr

@@ -1,0 +1,275 @@
+"""Grade exercise notebooks: restore grader cells, run under nbval, count points.
+
+The learner's file is never written to. Each submission is copied into a temporary
+folder, its grader cells are restored from the released exercise (by cell id: edited
+ones replaced and reported, deleted ones re-added), and the copy is run by nbval in a
+subprocess with its own kernel and a per-cell timeout. A grader cell earns its points
+when nbval passes it: it ran without error and printed exactly the stored success line.
+"""
+
+from __future__ import annotations
+
+import copy
+import csv
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import nbformat
+
+from kalman_course.authoring import CHECK_OUTPUT_TAG, GRADER_TAG, IGNORE_OUTPUT_TAG, grader_info
+
+ANSI_RE = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
+EXCEPTION_LINE_RE = re.compile(r"^\s*([A-Za-z_][\w.]*(?:Error|Failed|Exception|Interrupt)): (.+)$", re.M)
+
+#: Statuses of a graded notebook. Anything but GRADED means it did not run to the end.
+GRADED, TIMED_OUT, KERNEL_DIED, NOT_A_NOTEBOOK, NO_RELEASE, RUN_ERROR = (
+    "graded", "timed out", "kernel died", "not a notebook", "no release", "run error")
+
+
+@dataclass
+class CheckResult:
+    """One grader cell's outcome."""
+
+    check: str
+    cell_id: str
+    points: int
+    possible: int
+    message: str = ""
+
+
+@dataclass
+class NotebookResult:
+    """The outcome of grading one notebook."""
+
+    path: str
+    chapter: str = ""
+    status: str = GRADED
+    checks: list[CheckResult] = field(default_factory=list)
+    tampered: list[str] = field(default_factory=list)
+    readded: list[str] = field(default_factory=list)
+    detail: str = ""
+    seconds: float = 0.0
+
+    @property
+    def points(self) -> int:
+        return sum(c.points for c in self.checks)
+
+    @property
+    def possible(self) -> int:
+        return sum(c.possible for c in self.checks)
+
+    @property
+    def hint(self) -> str:
+        """The first line of the first failing check's message (or the run problem)."""
+        if self.status != GRADED and self.detail:
+            return self.detail
+        for c in self.checks:
+            if c.points < c.possible:
+                return c.message
+        return ""
+
+
+def exception_summary(report: str) -> str:
+    """Return the most telling line of an nbval failure report (the last exception raised)."""
+    text = ANSI_RE.sub("", report)
+    found = EXCEPTION_LINE_RE.findall(text)
+    if found:
+        name, msg = found[-1]
+        return f"{name.rsplit('.', 1)[-1]}: {msg.strip()}"
+    if "mismatch" in text.lower():
+        return "output differs from the expected success line"
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    return lines[0] if lines else "failed"
+
+
+def chapter_of_notebook(nb, path: Path) -> str:
+    """Chapter from the notebook metadata, else from a ``NN_`` file-name prefix ('' if neither)."""
+    chapter = nb.metadata.get("kalman_course", {}).get("chapter")
+    if chapter:
+        return str(chapter)
+    m = re.match(r"^(\d\d)_", path.name)
+    return m.group(1) if m else ""
+
+
+def load_release(release_dir: str | Path) -> dict[str, nbformat.NotebookNode]:
+    """Read the released exercises, keyed by chapter."""
+    release_dir = Path(release_dir)
+    if not release_dir.is_dir():
+        raise FileNotFoundError(f"release folder not found: {release_dir} (pass --release DIR)")
+    release = {}
+    for path in sorted(release_dir.glob("[0-9][0-9]_*.ipynb")):
+        nb = nbformat.read(path, as_version=4)
+        release[chapter_of_notebook(nb, path)] = nb
+    return release
+
+
+def restore_graders(submission, release):
+    """Return a copy of ``submission`` whose grader cells are exactly the release's.
+
+    Returns
+    -------
+    nb : NotebookNode
+        The notebook to run.
+    tampered : list of str
+        Ids of grader cells whose source had been changed (now restored).
+    readded : list of str
+        Ids of grader cells that were missing (now re-inserted where the release has them).
+    """
+    nb = copy.deepcopy(submission)
+    release_ids = [c.get("id") for c in release.cells]
+    graders = {c["id"]: c for c in release.cells if grader_info(c)}
+    tampered, readded = [], []
+    # Learner cells may carry any tags; make sure none is graded or skipped by nbval.
+    for cell in nb.cells:
+        if cell.cell_type == "code" and cell.get("id") not in graders:
+            tags = [t for t in cell.metadata.get("tags", [])
+                    if t not in (GRADER_TAG, CHECK_OUTPUT_TAG) and not t.startswith("nbval")]
+            cell.metadata["tags"] = tags + [IGNORE_OUTPUT_TAG]
+            cell.metadata.pop("kalman_course", None)
+    position = {c.get("id"): i for i, c in enumerate(nb.cells)}
+    for gid, ref in graders.items():
+        if gid in position:
+            if nb.cells[position[gid]].source != ref.source:
+                tampered.append(gid)
+            nb.cells[position[gid]] = copy.deepcopy(ref)
+            continue
+        # Re-insert after the nearest preceding release cell that the submission still has.
+        insert_at = 0
+        for prev in reversed(release_ids[:release_ids.index(gid)]):
+            if prev in position:
+                insert_at = position[prev] + 1
+                break
+        nb.cells.insert(insert_at, copy.deepcopy(ref))
+        readded.append(gid)
+        position = {c.get("id"): i for i, c in enumerate(nb.cells)}
+    nb.metadata["kernelspec"] = copy.deepcopy(release.metadata.get("kernelspec", {}))
+    return nb, tampered, readded
+
+
+def run_notebook(nb, *, timeout: float = 120.0) -> tuple[str, list[dict], str]:
+    """Run ``nb`` under ``pytest --nbval-lax`` in a fresh kernel, in a temporary folder.
+
+    Parameters
+    ----------
+    nb : NotebookNode
+        The notebook (already restored); it is written to a temporary copy only.
+    timeout : float
+        Per-cell timeout in seconds.
+
+    Returns
+    -------
+    status : str
+        GRADED, TIMED_OUT, KERNEL_DIED or RUN_ERROR.
+    cells : list of dict
+        nbval's per-code-cell results (cell_id, index, passed, message).
+    detail : str
+        What went wrong when the status is not GRADED.
+    """
+    n_code = sum(c.cell_type == "code" for c in nb.cells)
+    with tempfile.TemporaryDirectory(prefix="kalman-grade-") as tmp:
+        tmp = Path(tmp)
+        target = tmp / "submission.ipynb"
+        nbformat.write(nb, target)
+        (tmp / "pytest.ini").write_text("[pytest]\n", encoding="utf-8")
+        results = tmp / "results.json"
+        cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--color=no",
+               "-p", "kalman_course.nbval_results", "--nbval-lax", "--nbval-current-env",
+               f"--nbval-cell-timeout={timeout:g}", "-c", str(tmp / "pytest.ini"),
+               "--rootdir", str(tmp), str(target)]
+        env = dict(os.environ, KALMAN_COURSE_RESULTS=str(results), MPLBACKEND="Agg")
+        proc = subprocess.Popen(cmd, cwd=tmp, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                text=True, start_new_session=True)
+        try:
+            out, _ = proc.communicate(timeout=timeout * max(n_code, 1) + 60)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)  # the kernel is in this process group too
+            proc.communicate()
+            return TIMED_OUT, [], "the whole notebook ran out of time"
+        if not results.exists():
+            return RUN_ERROR, [], "nbval did not run: " + (out.strip().splitlines() or ["no output"])[-1]
+        cells = json.loads(results.read_text(encoding="utf-8"))
+    messages = " ".join(c["message"] for c in cells)
+    if "Timeout of" in messages:
+        return TIMED_OUT, cells, f"a cell ran longer than {timeout:g} s"
+    if re.search(r"Kernel (?:dead|died)|kernel died", messages, re.I):
+        return KERNEL_DIED, cells, "the kernel died (os._exit, a crash, or out of memory)"
+    return GRADED, cells, ""
+
+
+def grade_notebook(path: str | Path, release: dict, *, timeout: float = 120.0) -> NotebookResult:
+    """Grade one submitted notebook against the released exercises (``release`` by chapter)."""
+    path = Path(path)
+    result = NotebookResult(path=str(path))
+    start = time.perf_counter()
+    try:
+        submission = nbformat.read(path, as_version=4)
+        nbformat.validate(submission)
+    except Exception as exc:  # corrupt JSON, empty file, not a notebook at all
+        result.status, result.detail = NOT_A_NOTEBOOK, f"cannot read it as a notebook ({type(exc).__name__})"
+        return result
+    result.chapter = chapter_of_notebook(submission, path)
+    if result.chapter not in release:
+        result.status = NO_RELEASE
+        result.detail = f"no released exercise for chapter {result.chapter or '?'}"
+        return result
+    ref = release[result.chapter]
+    nb, result.tampered, result.readded = restore_graders(submission, ref)
+    result.status, cells, result.detail = run_notebook(nb, timeout=timeout)
+    by_id = {c["cell_id"]: c for c in cells}
+    for cell in ref.cells:
+        info = grader_info(cell)
+        if not info:
+            continue
+        check, possible = info
+        outcome = by_id.get(cell["id"])
+        passed = bool(outcome and outcome["passed"])
+        message = "" if passed else (exception_summary(outcome["message"]) if outcome else "not run")
+        result.checks.append(CheckResult(check, cell["id"], possible if passed else 0, possible, message))
+    result.seconds = time.perf_counter() - start
+    return result
+
+
+def format_table(results: list[NotebookResult], width: int = 100) -> str:
+    """Return the points table printed by ``kalman-course grade``."""
+    rows = [("chapter", "notebook", "points", "status", "first hint")]
+    for r in results:
+        hint = r.hint.splitlines()[0] if r.hint else ""
+        if len(hint) > width:
+            hint = hint[: width - 3] + "..."
+        rows.append((r.chapter or "?", Path(r.path).name, f"{r.points}/{r.possible}", r.status, hint))
+    widths = [max(len(row[i]) for row in rows) for i in range(4)]
+    lines = ["  ".join(cell.ljust(w) for cell, w in zip(row[:4], widths)) + "  " + row[4] for row in rows]
+    lines.insert(1, "-" * min(sum(widths) + 8 + 10, 120))
+    total, possible = sum(r.points for r in results), sum(r.possible for r in results)
+    lines.append(f"total {total}/{possible} points")
+    for r in results:
+        if r.tampered or r.readded:
+            lines.append(f"note: {Path(r.path).name}: grader cells restored "
+                         f"(edited: {', '.join(r.tampered) or 'none'}; re-added: {', '.join(r.readded) or 'none'})")
+    return "\n".join(lines)
+
+
+def write_csv(results: list[NotebookResult], path: str | Path) -> None:
+    """Write one row per notebook: chapter, points, status, restored cells, each check's points."""
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(["notebook", "chapter", "status", "points", "possible", "checks",
+                    "tampered", "readded", "hint"])
+        for r in results:
+            w.writerow([r.path, r.chapter, r.status, r.points, r.possible,
+                        ";".join(f"{c.check}={c.points}/{c.possible}" for c in r.checks),
+                        ";".join(r.tampered), ";".join(r.readded), r.hint])
+
+
+def write_json(results: list[NotebookResult], path: str | Path) -> None:
+    """Write the full results (every check's message included) as JSON."""
+    data = [dict(asdict(r), points=r.points, possible=r.possible, hint=r.hint) for r in results]
+    Path(path).write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")

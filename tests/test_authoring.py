@@ -1,0 +1,111 @@
+"""The exercise builder: fix-region parsing, deterministic builds, sync with solutions/."""
+
+import hashlib
+import shutil
+
+import nbformat
+import pytest
+from nbformat.v4 import new_code_cell, new_notebook
+
+from kalman_course import authoring
+from kalman_course.authoring import AuthoringError
+
+from conftest import ROOT
+
+SOLUTIONS = sorted((ROOT / "solutions").glob("[0-9][0-9]_*.ipynb"))
+
+REGION = """def f(x):
+    # BEGIN SOLUTION f_check
+    y = x + 1
+    # STUB
+    # y = x - 1  # fix this
+    # END SOLUTION
+    return y"""
+
+
+def _grader(check="f_check", points=2):
+    cell = new_code_cell(f"checks.{check}(f)")
+    cell.metadata["tags"] = ["grader"]
+    cell.metadata["kalman_course"] = {"check": check, "points": points}
+    return cell
+
+
+def _solution(tmp_path, source=REGION, graders=None, name="07_demo.ipynb"):
+    nb = new_notebook(cells=[new_code_cell(source), *(graders if graders is not None else [_grader()])])
+    for i, c in enumerate(nb.cells):
+        c["id"] = f"cell{i}"
+    path = tmp_path / name
+    nbformat.write(nb, path)
+    return path
+
+
+def test_render_replaces_region_with_uncommented_stub(tmp_path):
+    nb = nbformat.read(_solution(tmp_path), as_version=4)
+    assert authoring.render(nb).cells[0].source == (
+        "def f(x):\n    y = x - 1  # fix this\n    return y")
+    assert authoring.render(nb, set()).cells[0].source == "def f(x):\n    y = x + 1\n    return y"
+    [stub] = authoring.list_stubs(nb)
+    assert (stub.stub_id, stub.check) == ("cell0:0", "f_check")
+
+
+def test_exercise_gets_grader_ids_tags_and_chapter(tmp_path):
+    ex = authoring.build_exercise(_solution(tmp_path))
+    code, grader = ex.cells
+    assert grader["id"] == "grader-f_check"
+    assert "nbval-check-output" in grader.metadata["tags"]
+    assert code.metadata["tags"] == ["nbval-ignore-output"]
+    assert ex.metadata["kalman_course"]["chapter"] == "07"
+    assert ex.metadata["kalman_course"]["graders"] == {"f_check": 2}
+
+
+@pytest.mark.parametrize("source, message", [
+    (REGION.replace("  # fix this", ""), "has no '# fix this'"),
+    (REGION.replace("    # STUB\n", ""), "no '# STUB'"),
+    (REGION.replace("    # END SOLUTION\n", ""), "is '# END SOLUTION' missing"),
+    (REGION.replace("    # END SOLUTION\n    return y", ""), "no '# END SOLUTION'"),
+    (REGION.replace("    # y = x - 1", "    y = x - 1"), "stub lines must be commented"),
+    ("x = 1\n# END SOLUTION", "without '# BEGIN SOLUTION'"),
+])
+def test_malformed_regions_are_reported(tmp_path, source, message):
+    with pytest.raises(AuthoringError, match=message):
+        authoring.build_exercise(_solution(tmp_path, source))
+
+
+def test_stub_without_grader_and_grader_without_stub_are_errors(tmp_path):
+    with pytest.raises(AuthoringError, match="has no grader cell"):
+        authoring.build_exercise(_solution(tmp_path, graders=[]))
+    with pytest.raises(AuthoringError, match="have no stub"):
+        authoring.build_exercise(_solution(tmp_path, graders=[_grader(), _grader("other")]))
+    with pytest.raises(AuthoringError, match="points"):
+        authoring.build_exercise(_solution(tmp_path, graders=[_grader(points=0)]))
+
+
+def test_notebook_names_need_a_chapter(tmp_path):
+    with pytest.raises(AuthoringError, match="two-digit chapter"):
+        authoring.build_exercise(_solution(tmp_path, name="demo.ipynb"))
+
+
+def test_build_is_deterministic_and_check_detects_drift(tmp_path):
+    sol, ex = tmp_path / "solutions", tmp_path / "exercises"
+    shutil.copytree(ROOT / "solutions", sol)
+    assert authoring.build_all(sol, ex)  # first build writes everything
+    digest = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in ex.iterdir()}
+    assert authoring.build_all(sol, ex) == []  # second build changes nothing
+    assert digest == {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in ex.iterdir()}
+    target = sorted(ex.iterdir())[0]
+    target.write_text(target.read_text().replace("# fix this", "# fixed"))
+    assert authoring.build_all(sol, ex, check=True) == [target]
+    (ex / "99_stray.ipynb").write_text("{}")
+    assert ex / "99_stray.ipynb" in authoring.build_all(sol, ex, check=True)
+
+
+def test_exercises_folder_is_in_sync_with_solutions():
+    assert authoring.build_all(ROOT / "solutions", ROOT / "exercises", check=True) == [], \
+        "exercises/ is out of date: run `kalman-course build`"
+
+
+@pytest.mark.parametrize("path", SOLUTIONS, ids=lambda p: p.stem)
+def test_every_solution_has_at_least_three_stubs(path):
+    stubs = authoring.list_stubs(nbformat.read(path, as_version=4))
+    assert len(stubs) >= 3
+    assert all("# fix this" in s.stub for s in stubs)

@@ -1,0 +1,93 @@
+"""Every exercise, run in a kernel: solutions pass, exercises fail, each stub fails alone.
+
+These are the guarantees the course makes to learners: a correct notebook earns every
+point, the released exercise earns none, and no stub goes unnoticed by its grader.
+"""
+
+import hashlib
+import json
+import shutil
+
+import nbformat
+import pytest
+
+from kalman_course import authoring, cli, grading
+
+from conftest import ROOT
+
+pytestmark = pytest.mark.slow
+
+SOLUTIONS = sorted((ROOT / "solutions").glob("[0-9][0-9]_*.ipynb"))
+STUBS = [(path, stub) for path in SOLUTIONS
+         for stub in authoring.list_stubs(nbformat.read(path, as_version=4))]
+
+
+def _graders(nb) -> dict[str, str]:
+    """Map check name -> grader cell id."""
+    return {info[0]: cell["id"] for cell in nb.cells if (info := authoring.grader_info(cell))}
+
+
+def _outcomes(nb) -> dict[str, bool]:
+    status, cells, detail = grading.run_notebook(nb, timeout=120)
+    assert status == grading.GRADED, detail
+    return {c["cell_id"]: c["passed"] for c in cells}
+
+
+@pytest.mark.parametrize("path", SOLUTIONS, ids=lambda p: p.stem)
+def test_solution_passes_every_grader(path):
+    nb = nbformat.read(path, as_version=4)
+    outcomes = _outcomes(nb)
+    for check, cid in _graders(nb).items():
+        assert outcomes.get(cid) is True, f"the solution fails grader {check}"
+
+
+@pytest.mark.parametrize("path", SOLUTIONS, ids=lambda p: p.stem)
+def test_exercise_fails_every_grader(path):
+    nb = nbformat.read(ROOT / "exercises" / path.name, as_version=4)
+    outcomes = _outcomes(nb)
+    for check, cid in _graders(nb).items():
+        assert outcomes.get(cid) is False, f"grader {check} passes on the untouched exercise"
+
+
+@pytest.mark.parametrize("path, stub", STUBS, ids=[f"{p.stem}-{s.check}-{s.stub_id}" for p, s in STUBS])
+def test_each_stub_alone_fails_its_grader(path, stub):
+    nb = nbformat.read(path, as_version=4)
+    outcomes = _outcomes(authoring.render(nb, {stub.stub_id}))
+    assert outcomes.get(_graders(nb)[stub.check]) is False, \
+        f"stub {stub.stub_id} ({stub.stub.strip()!r}) does not fail grader {stub.check}"
+
+
+def test_grade_restores_a_tampered_grader_and_never_writes_the_submission(tmp_path, capsys):
+    name = SOLUTIONS[0].name
+    exercise = nbformat.read(ROOT / "exercises" / name, as_version=4)
+    check, cid = next(iter(_graders(exercise).items()))
+    tampered = exercise.copy()
+    for cell in tampered.cells:
+        if cell["id"] == cid:
+            cell.source = f'print("{check}: passed")'
+    sub_dir = tmp_path / "learner"
+    sub_dir.mkdir()
+    nbformat.write(tampered, sub_dir / name)
+    shutil.copy(ROOT / "exercises" / name, tmp_path / name)  # the untouched exercise, for comparison
+    digest = hashlib.sha256((sub_dir / name).read_bytes()).hexdigest()
+
+    code = cli.main(["grade", str(sub_dir / name), str(tmp_path / name),
+                     "--release", str(ROOT / "exercises"), "--json", str(tmp_path / "g.json")])
+    assert code == 0
+    tampered_result, untouched_result = json.loads((tmp_path / "g.json").read_text())
+    assert tampered_result["tampered"] == [cid]
+    assert tampered_result["checks"] == untouched_result["checks"]
+    assert tampered_result["points"] == 0 and tampered_result["possible"] > 0
+    assert hashlib.sha256((sub_dir / name).read_bytes()).hexdigest() == digest
+    out = capsys.readouterr().out
+    assert "grader cells restored" in out and f"0/{tampered_result['possible']}" in out
+
+
+def test_grade_keeps_going_past_a_broken_notebook_and_exits_nonzero(tmp_path):
+    (tmp_path / "01_broken.ipynb").write_text("{ not json")
+    shutil.copy(ROOT / "exercises" / SOLUTIONS[0].name, tmp_path / SOLUTIONS[0].name)
+    out = tmp_path / "g.csv"
+    code = cli.main(["grade", str(tmp_path), "--release", str(ROOT / "exercises"), "--csv", str(out)])
+    assert code == 1
+    rows = out.read_text().splitlines()
+    assert len(rows) == 3 and "not a notebook" in rows[1] and ",graded," in rows[2]
