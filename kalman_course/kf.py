@@ -1,0 +1,460 @@
+"""The linear Kalman filter: predict, update, and a runner that records every step.
+
+Chapter 03 of the course. Lecture notation: prior :math:`\\check x, \\check P`
+(``x_check``, ``P_check``), posterior :math:`\\hat x, \\hat P` (``x_hat``, ``P_hat``).
+
+Motion model :math:`x_k = F x_{k-1} + v_k + B w_k`, :math:`w_k \\sim \\mathcal N(0, Q)`;
+observation model :math:`y_k = G x_k + C n_k`, :math:`n_k \\sim \\mathcal N(0, R)`.
+The five equations:
+
+.. math::
+
+    \\check x_k &= F \\hat x_{k-1} + v_k \\\\
+    \\check P_k &= F \\hat P_{k-1} F^T + B Q B^T \\\\
+    K_k &= \\check P_k G^T (G \\check P_k G^T + C R C^T)^{-1} \\\\
+    \\hat x_k &= \\check x_k + K_k (y_k - G \\check x_k) \\\\
+    \\hat P_k &= (I - K_k G) \\check P_k
+
+The public functions validate their inputs (a ``ValueError`` names the argument and what
+was expected). :func:`run_kf` validates once and then runs the same equations through
+private, unvalidated kernels, so a long run costs no more per step than the maths.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+from numpy import dot
+from numpy.linalg import solve
+
+from kalman_course.validation import as_covariance, as_matrix, as_vector, symmetrise
+
+__all__ = [
+    "kf_predict",
+    "innovation_covariance",
+    "kf_gain",
+    "kf_update",
+    "KFUpdate",
+    "run_kf",
+    "KFHistory",
+]
+
+
+class KFUpdate(NamedTuple):
+    """Everything one Kalman update computes.
+
+    Attributes
+    ----------
+    x_hat : ndarray, shape (n,)
+        Posterior mean :math:`\\hat x`.
+    P_hat : ndarray, shape (n, n)
+        Posterior covariance :math:`\\hat P`, symmetric.
+    innovation : ndarray, shape (m,)
+        :math:`y - G \\check x`.
+    S : ndarray, shape (m, m)
+        Innovation covariance :math:`G \\check P G^T + C R C^T`.
+    K : ndarray, shape (n, m)
+        Kalman gain :math:`\\check P G^T S^{-1}`.
+    """
+
+    x_hat: np.ndarray
+    P_hat: np.ndarray
+    innovation: np.ndarray
+    S: np.ndarray
+    K: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class KFHistory:
+    """The record of a :func:`run_kf` run over N steps.
+
+    Attributes
+    ----------
+    x_check : ndarray, shape (N, n)
+        Prior means :math:`\\check x_k`.
+    P_check : ndarray, shape (N, n, n)
+        Prior covariances :math:`\\check P_k`.
+    x_hat : ndarray, shape (N, n)
+        Posterior means :math:`\\hat x_k`.
+    P_hat : ndarray, shape (N, n, n)
+        Posterior covariances :math:`\\hat P_k`.
+    innovation : ndarray, shape (N, m)
+        Innovations :math:`y_k - G \\check x_k`; NaN rows where there was no measurement.
+    S : ndarray, shape (N, m, m)
+        Innovation covariances :math:`S_k`; NaN where there was no measurement.
+    K : ndarray, shape (N, n, m)
+        Kalman gains :math:`K_k`; NaN where there was no measurement.
+    """
+
+    x_check: np.ndarray
+    P_check: np.ndarray
+    x_hat: np.ndarray
+    P_hat: np.ndarray
+    innovation: np.ndarray
+    S: np.ndarray
+    K: np.ndarray
+
+
+# ---------------------------------------------------------------------------------------
+# validation
+#
+# The public steps sit in learners' loops, so their checks have a fast path: a float64
+# array of the right shape that passes the same tests as the shared helpers (finite,
+# exactly symmetric, non-negative diagonal, Cholesky for R) is accepted after a few cheap
+# numpy calls. Anything else goes to the shared helper in kalman_course.validation, which
+# applies the full rules (e.g. symmetry within a relative tolerance) and raises the
+# canonical ValueError naming the argument.
+# ---------------------------------------------------------------------------------------
+
+def _is_float_array(value, shape) -> bool:
+    return type(value) is np.ndarray and value.dtype == np.float64 and value.shape == shape
+
+
+def _vector(value, name: str, n: int | None = None) -> np.ndarray:
+    if (type(value) is np.ndarray and value.dtype == np.float64 and value.ndim == 1
+            and (n is None or value.shape[0] == n) and np.isfinite(value).all()):
+        return value
+    return as_vector(value, name, n)
+
+
+def _matrix(value, name: str, shape: tuple[int | None, int | None]) -> np.ndarray:
+    if (type(value) is np.ndarray and value.dtype == np.float64 and value.ndim == 2
+            and shape[0] in (None, value.shape[0]) and shape[1] in (None, value.shape[1])
+            and np.isfinite(value).all()):
+        return value
+    return as_matrix(value, name, shape)
+
+
+def _covariance(value, name: str, n: int, positive_definite: bool = False) -> np.ndarray:
+    if (_is_float_array(value, (n, n)) and n > 0 and np.isfinite(value).all()
+            and (value == value.T).all() and value.diagonal().min() >= 0):
+        if not positive_definite:
+            return value
+        try:
+            np.linalg.cholesky(value)
+            return value
+        except np.linalg.LinAlgError:
+            pass
+    return as_covariance(value, name, n, positive_definite=positive_definite)
+
+
+def _process_noise(Q, B, n: int) -> np.ndarray:
+    """Validate Q (and B) and return the state-space process noise B Q Bᵀ, shape (n, n)."""
+    if B is None:
+        return _covariance(Q, "Q", n)
+    B = _matrix(B, "B", (n, None))
+    Q = _covariance(Q, "Q", B.shape[1])
+    return B @ Q @ B.T
+
+
+def _observation_noise(R, C, m: int) -> np.ndarray:
+    """Validate R (and C) and return the measurement-space noise C R Cᵀ, shape (m, m)."""
+    if C is None:
+        return _covariance(R, "R", m, positive_definite=True)
+    C = _matrix(C, "C", (m, None))
+    R = _covariance(R, "R", C.shape[1], positive_definite=True)
+    return C @ R @ C.T
+
+
+# ---------------------------------------------------------------------------------------
+# unvalidated kernels: the equations, nothing else
+# ---------------------------------------------------------------------------------------
+
+def _predict(x_hat, P_hat, F, BQBt, v):
+    """x̌ = F x̂ (+ v), P̌ = F P̂ Fᵀ + B Q Bᵀ. ``np.dot`` because it is the fastest call
+    numpy offers for these tiny products."""
+    x_check = dot(F, x_hat)                            # F x̂
+    if v is not None:
+        x_check += v                                   # + v
+    P_check = dot(dot(F, P_hat), F.T) + BQBt           # F P̂ Fᵀ + B Q Bᵀ
+    return x_check, symmetrise(P_check)
+
+
+def _update(x_check, P_check, y, G, CRCt, joseph):
+    """The update equations; returns (x̂, P̂, innovation, S, K)."""
+    innovation = y - dot(G, x_check)                   # e = y - G x̌
+    GP = dot(G, P_check)                               # G P̌, (m, n)
+    S = dot(GP, G.T) + CRCt                            # S = G P̌ Gᵀ + C R Cᵀ
+    if S.shape[0] == 1:                                # K = P̌ Gᵀ S⁻¹:
+        K = GP.T / S[0, 0]                             #   scalar y, S⁻¹ is a division
+    else:
+        K = solve(S, GP).T                             #   else a solve, Kᵀ = S⁻¹ G P̌
+    x_hat = x_check + dot(K, innovation)               # x̂ = x̌ + K e
+    if joseph:
+        I_KG = np.eye(x_check.shape[0]) - dot(K, G)    # I - K G
+        P_hat = dot(dot(I_KG, P_check), I_KG.T) + dot(dot(K, CRCt), K.T)
+    else:
+        P_hat = P_check - dot(K, GP)                   # P̂ = (I - K G) P̌ = P̌ - K G P̌
+    return x_hat, symmetrise(P_hat), innovation, S, K
+
+
+# ---------------------------------------------------------------------------------------
+# public, validated steps
+# ---------------------------------------------------------------------------------------
+
+def kf_predict(x_hat, P_hat, F, Q, B=None, v=None):
+    """Kalman prediction: propagate the posterior through the motion model.
+
+    .. math::
+
+        \\check x = F \\hat x + v, \\qquad \\check P = F \\hat P F^T + B Q B^T
+
+    Parameters
+    ----------
+    x_hat : array_like, shape (n,)
+        Posterior mean at the previous step, :math:`\\hat x_{k-1}`.
+    P_hat : array_like, shape (n, n)
+        Posterior covariance at the previous step, :math:`\\hat P_{k-1}`.
+    F : array_like, shape (n, n)
+        Motion (state-transition) Jacobian.
+    Q : array_like, shape (n, n) or (q, q)
+        Process-noise covariance; (n, n) when ``B`` is None, else (q, q). It may be
+        singular (for example the constant-velocity model's Q).
+    B : array_like, shape (n, q), optional
+        Process-noise Jacobian; None means the identity (Q already in state space).
+    v : array_like, shape (n,), optional
+        Known input already mapped into the state space (for example a control term).
+
+    Returns
+    -------
+    x_check : ndarray, shape (n,)
+        Prior mean :math:`\\check x_k`.
+    P_check : ndarray, shape (n, n)
+        Prior covariance :math:`\\check P_k`, symmetric.
+
+    Raises
+    ------
+    ValueError
+        If a shape does not match or a covariance is not symmetric.
+    """
+    x_hat = _vector(x_hat, "x_hat")
+    n = x_hat.shape[0]
+    P_hat = _covariance(P_hat, "P_hat", n)
+    F = _matrix(F, "F", (n, n))
+    BQBt = _process_noise(Q, B, n)
+    if v is not None:
+        v = _vector(v, "v", n)
+    return _predict(x_hat, P_hat, F, BQBt, v)
+
+
+def innovation_covariance(P_check, G, R, C=None):
+    """Innovation covariance :math:`S = G \\check P G^T + C R C^T`.
+
+    Parameters
+    ----------
+    P_check : array_like, shape (n, n)
+        Prior covariance :math:`\\check P`.
+    G : array_like, shape (m, n)
+        Observation Jacobian.
+    R : array_like, shape (m, m) or (r, r)
+        Observation-noise covariance, symmetric positive definite; (m, m) when ``C`` is
+        None, else (r, r).
+    C : array_like, shape (m, r), optional
+        Observation-noise Jacobian; None means the identity.
+
+    Returns
+    -------
+    ndarray, shape (m, m)
+        :math:`S`, symmetric.
+
+    Raises
+    ------
+    ValueError
+        If a shape does not match, ``P_check`` is not a symmetric covariance, or ``R`` is
+        not symmetric positive definite.
+    """
+    P_check = as_covariance(P_check, "P_check")
+    G = as_matrix(G, "G", (None, P_check.shape[0]))
+    CRCt = _observation_noise(R, C, G.shape[0])
+    return symmetrise(G @ P_check @ G.T + CRCt)
+
+
+def kf_gain(P_check, G, S):
+    """Kalman gain :math:`K = \\check P G^T S^{-1}`, by a linear solve with S.
+
+    Since :math:`\\check P` and S are symmetric, :math:`K^T = S^{-1} G \\check P`, which is
+    one call to ``np.linalg.solve``; no inverse is formed.
+
+    Parameters
+    ----------
+    P_check : array_like, shape (n, n)
+        Prior covariance :math:`\\check P`.
+    G : array_like, shape (m, n)
+        Observation Jacobian.
+    S : array_like, shape (m, m)
+        Innovation covariance, symmetric positive definite.
+
+    Returns
+    -------
+    ndarray, shape (n, m)
+        The gain K.
+
+    Raises
+    ------
+    ValueError
+        If a shape does not match, ``P_check`` is not a symmetric covariance, or ``S`` is
+        not symmetric positive definite.
+    """
+    P_check = as_covariance(P_check, "P_check")
+    G = as_matrix(G, "G", (None, P_check.shape[0]))
+    S = as_covariance(S, "S", G.shape[0], positive_definite=True)
+    return np.linalg.solve(S, G @ P_check).T
+
+
+def kf_update(x_check, P_check, y, G, R, C=None, joseph=False):
+    """Kalman update: condition the prior on the measurement y.
+
+    .. math::
+
+        e = y - G \\check x, \\quad S = G \\check P G^T + C R C^T, \\quad
+        K = \\check P G^T S^{-1}, \\quad \\hat x = \\check x + K e,
+
+    and either the standard form :math:`\\hat P = (I - K G) \\check P` or the Joseph form
+    :math:`\\hat P = (I - K G) \\check P (I - K G)^T + K C R C^T K^T`, which stays
+    symmetric positive semi-definite even for a sub-optimal K. Both are symmetrised.
+
+    Parameters
+    ----------
+    x_check : array_like, shape (n,)
+        Prior mean :math:`\\check x`.
+    P_check : array_like, shape (n, n)
+        Prior covariance :math:`\\check P`.
+    y : array_like, shape (m,)
+        The measurement.
+    G : array_like, shape (m, n)
+        Observation Jacobian.
+    R : array_like, shape (m, m) or (r, r)
+        Observation-noise covariance, symmetric positive definite; (m, m) when ``C`` is
+        None, else (r, r).
+    C : array_like, shape (m, r), optional
+        Observation-noise Jacobian; None means the identity.
+    joseph : bool, default False
+        Use the Joseph form for the posterior covariance.
+
+    Returns
+    -------
+    KFUpdate
+        Named tuple ``(x_hat, P_hat, innovation, S, K)`` with shapes (n,), (n, n), (m,),
+        (m, m), (n, m).
+
+    Raises
+    ------
+    ValueError
+        If a shape does not match, ``P_check`` is not a symmetric covariance, or ``R`` is
+        not symmetric positive definite.
+    """
+    x_check = _vector(x_check, "x_check")
+    n = x_check.shape[0]
+    P_check = _covariance(P_check, "P_check", n)
+    y = _vector(y, "y")
+    m = y.shape[0]
+    G = _matrix(G, "G", (m, n))
+    CRCt = _observation_noise(R, C, m)
+    return KFUpdate(*_update(x_check, P_check, y, G, CRCt, bool(joseph)))
+
+
+# ---------------------------------------------------------------------------------------
+# the runner
+# ---------------------------------------------------------------------------------------
+
+def run_kf(x0, P0, F, Q, G, R, ys, *, B=None, vs=None, joseph=False):
+    """Run the Kalman filter over a sequence of measurements and record every step.
+
+    Convention (as in the lecture): ``x0, P0`` are the *prior* at step 0, so step 0 is an
+    update only; every step k ≥ 1 first predicts from the posterior of step k − 1 and
+    then updates with ``ys[k]``. A row of ``ys`` that is entirely NaN means "no measurement
+    at this step": the posterior equals the prior and that step's innovation, S and K
+    rows are NaN.
+
+    Inputs are validated once, up front; the loop then runs the bare equations.
+
+    Parameters
+    ----------
+    x0 : array_like, shape (n,)
+        Prior mean at step 0, :math:`\\check x_0`.
+    P0 : array_like, shape (n, n)
+        Prior covariance at step 0, :math:`\\check P_0`.
+    F : array_like, shape (n, n)
+        Motion Jacobian (time-invariant).
+    Q : array_like, shape (n, n) or (q, q)
+        Process-noise covariance; (q, q) when ``B`` is given.
+    G : array_like, shape (m, n)
+        Observation Jacobian (time-invariant).
+    R : array_like, shape (m, m)
+        Observation-noise covariance, symmetric positive definite.
+    ys : array_like, shape (N, m)
+        Measurements, one row per step; an all-NaN row is a missing measurement. A scalar
+        series must be given as a column, ``ys[:, None]``.
+    B : array_like, shape (n, q), optional
+        Process-noise Jacobian; None means the identity.
+    vs : array_like, shape (N, n), optional
+        Known inputs in state space: ``vs[k]`` is added in the prediction of step k.
+        ``vs[0]`` is not used (there is no prediction at step 0).
+    joseph : bool, default False
+        Use the Joseph form of the covariance update.
+
+    Returns
+    -------
+    KFHistory
+        Priors, posteriors, innovations, their covariances and the gains, one row per
+        step.
+
+    Raises
+    ------
+    ValueError
+        If a shape does not match, a covariance is not symmetric (R: not positive
+        definite), ``ys`` has a row that is only partly NaN or holds inf, or ``vs`` is not
+        finite.
+    """
+    x0 = as_vector(x0, "x0")
+    n = x0.shape[0]
+    P0 = as_covariance(P0, "P0", n)
+    F = as_matrix(F, "F", (n, n))
+    BQBt = _process_noise(Q, B, n)
+    G = as_matrix(G, "G", (None, n))
+    m = G.shape[0]
+    CRCt = _observation_noise(R, None, m)
+
+    ys = np.asarray(ys, dtype=float)
+    if ys.ndim != 2 or ys.shape[1] != m:
+        hint = "; reshape a 1-D series with ys[:, None]" if ys.ndim == 1 and m == 1 else ""
+        raise ValueError(f"ys must have shape (N, {m}) (one measurement row per step), "
+                         f"got {ys.shape}{hint}")
+    N = ys.shape[0]
+    missing = np.isnan(ys)
+    measured = ~np.all(missing, axis=1)
+    partial = np.any(missing, axis=1) & measured
+    if np.any(partial):
+        raise ValueError(f"ys rows must be all finite or all NaN (missing); "
+                         f"row {int(np.argmax(partial))} is only partly NaN")
+    if np.any(np.isinf(ys)):
+        raise ValueError("ys must not contain inf")
+    if vs is not None:
+        vs = as_matrix(vs, "vs", (N, n))
+
+    x_check = np.empty((N, n))
+    P_check = np.empty((N, n, n))
+    x_hat = np.empty((N, n))
+    P_hat = np.empty((N, n, n))
+    innovation = np.full((N, m), np.nan)
+    S = np.full((N, m, m), np.nan)
+    K = np.full((N, n, m), np.nan)
+    rows = list(ys)
+    inputs = [None] * N if vs is None else list(vs)
+    joseph = bool(joseph)
+
+    x, P = x0, P0                                       # prior at step 0
+    for k, has_measurement in enumerate(measured.tolist()):
+        if k > 0:
+            x, P = _predict(x, P, F, BQBt, inputs[k])
+        x_check[k] = x
+        P_check[k] = P
+        if has_measurement:                             # else: posterior = prior, NaN rows
+            x, P, innovation[k], S[k], K[k] = _update(x, P, rows[k], G, CRCt, joseph)
+        x_hat[k] = x
+        P_hat[k] = P
+
+    return KFHistory(x_check=x_check, P_check=P_check, x_hat=x_hat, P_hat=P_hat,
+                     innovation=innovation, S=S, K=K)
