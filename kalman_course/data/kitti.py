@@ -1,0 +1,700 @@
+"""KITTI sequence 00 excerpts: typed records, validated loaders and noise generators.
+
+The shipped files live in ``kalman_course/data/kitti/`` and are rebuilt from PyPI packages
+by ``python -m kalman_course.data.build`` (see that module and ``ATTRIBUTION.md``).
+Every stream is on one clock and in one frame:
+
+- time ``tau``: seconds since KITTI odometry frame 0 of sequence 00;
+- navigation frame n: the local metric frame of the OXTS GNSS/INS solution, z up, with
+  gravity ``g_n = (0, 0, −9.8092)`` m/s²;
+- body frame b: the OXTS IMU (x forward, y left, z up). Poses are IMU poses: ``position``
+  is the IMU origin in n (m), ``rotation`` is R_nb, ``quaternion`` the same attitude as
+  (w, x, y, z), Hamilton, w ≥ 0.
+
+The lidar map-matching poses are **simulated**: ground truth plus seeded noise
+(``simulate_lidar_poses``); KITTI has no such stream. The noisy GNSS copy is simulated as
+well (``simulate_gnss``). Data: KITTI (Geiger et al., IJRR 2013), CC BY-NC-SA 3.0.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import json
+import zipfile
+import zlib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from kalman_course import so3
+from kalman_course.imu import NavState, NavTrajectory
+
+__all__ = [
+    "EXCERPTS", "SCHEMA_VERSION", "ImuData", "GnssData", "TruthData", "LidarData", "SlamData",
+    "FrameInfo", "KittiExcerpt", "kitti_dir", "read_manifest", "load_kitti", "load_excerpt_file",
+    "simulate_lidar_poses", "simulate_gnss", "file_sha256",
+]
+
+#: Names accepted by :func:`load_kitti`: three excerpts and the whole sequence 00.
+EXCERPTS = ("cruise", "turns", "stop_go", "seq00")
+
+#: Version of the file layout below; bumped whenever a field is added, removed or changed.
+SCHEMA_VERSION = 1
+
+# field name -> (dtype kind, shape with symbolic sizes: N IMU samples, M GNSS fixes,
+# K ground-truth poses)
+_SCHEMA: dict[str, tuple[str, tuple]] = {
+    "meta": ("U", ()),
+    "gravity": ("f", (3,)),
+    "imu/t": ("f", ("N",)),
+    "imu/specific_force": ("f", ("N", 3)),
+    "imu/angular_rate": ("f", ("N", 3)),
+    "imu/interpolated": ("b", ("N",)),
+    "gnss/t": ("f", ("M",)),
+    "gnss/position": ("f", ("M", 3)),
+    "gnss/position_noisy": ("f", ("M", 3)),
+    "truth/t": ("f", ("K",)),
+    "truth/position": ("f", ("K", 3)),
+    "truth/velocity": ("f", ("K", 3)),
+    "truth/quaternion": ("f", ("K", 4)),
+    "lidar/position": ("f", ("K", 3)),
+    "lidar/quaternion": ("f", ("K", 4)),
+    "orb_slam2/position": ("f", ("K", 3)),
+    "orb_slam2/quaternion": ("f", ("K", 4)),
+    "sptam/position": ("f", ("K", 3)),
+    "sptam/quaternion": ("f", ("K", 4)),
+    "frames/R_cam_imu": ("f", (3, 3)),
+    "frames/t_cam_imu": ("f", (3,)),
+    "frames/R_nav_world": ("f", (3, 3)),
+    "frames/t_nav_world": ("f", (3,)),
+    "frames/scale": ("f", ()),
+}
+
+_META_KEYS = ("name", "schema_version", "tau_range", "lidar", "gnss", "provenance")
+
+
+def _frozen(arr: np.ndarray) -> np.ndarray:
+    """Return ``arr`` marked read-only (records are shared, e.g. by the load cache)."""
+    arr.setflags(write=False)
+    return arr
+
+
+# ---------------------------------------------------------------------------------------
+# Records
+# ---------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class ImuData:
+    """IMU samples (OXTS RT3003 as provided by GTSAM), about 100 Hz.
+
+    Attributes
+    ----------
+    t : numpy.ndarray, shape (N,)
+        Sample times tau, s. Irregular: dt ranges from 2.6 ms to 20 ms; use each
+        sample's own dt.
+    specific_force : numpy.ndarray, shape (N, 3)
+        Accelerometer reading f = R_nbᵀ (a_n − g_n) in the body frame, m/s².
+    angular_rate : numpy.ndarray, shape (N, 3)
+        Gyroscope reading ω in the body frame, rad/s.
+    interpolated : numpy.ndarray of bool, shape (N,)
+        True for samples that are linear interpolations filling a dropout of the
+        original recording (8 spans, 1,257 samples in all of sequence 00). Their gyro
+        disagrees with the truth by up to 0.36 rad/s; trust them less.
+    """
+
+    t: np.ndarray
+    specific_force: np.ndarray
+    angular_rate: np.ndarray
+    interpolated: np.ndarray
+
+    @property
+    def dt(self) -> np.ndarray:
+        """Intervals t[k+1] − t[k], s, shape (N−1,)."""
+        return np.diff(self.t)
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+@dataclass(frozen=True)
+class GnssData:
+    """GNSS positions at 1 Hz.
+
+    Attributes
+    ----------
+    t : numpy.ndarray, shape (M,)
+        Fix times tau, s.
+    position : numpy.ndarray, shape (M, 3)
+        The OXTS GNSS/INS position as recorded, navigation frame, m. It is an INS solution,
+        as accurate as the ground truth (millimetres), not raw GNSS.
+    position_noisy : numpy.ndarray, shape (M, 3)
+        ``position`` plus simulated white noise N(0, sigma² I): a realistic GNSS
+        observation for exercises, m.
+    sigma : float
+        Standard deviation of the simulated noise per axis, m.
+    seed : int
+        Seed of ``numpy.random.default_rng`` that drew the noise.
+    simulated_noise : bool
+        Always True: the noise of ``position_noisy`` is simulated.
+    """
+
+    t: np.ndarray
+    position: np.ndarray
+    position_noisy: np.ndarray
+    sigma: float
+    seed: int
+    simulated_noise: bool = True
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+@dataclass(frozen=True)
+class TruthData:
+    """Ground-truth IMU poses at about 10 Hz (the KITTI odometry ground truth).
+
+    Attributes
+    ----------
+    t : numpy.ndarray, shape (K,)
+        Camera frame times tau, s.
+    position : numpy.ndarray, shape (K, 3)
+        IMU origin in the navigation frame, m.
+    velocity : numpy.ndarray, shape (K, 3)
+        Velocity in the navigation frame, m/s, from a local cubic least-squares fit over 9
+        poses (±0.4 s); its noise is a few cm/s, so grade consistency on the pose.
+    quaternion : numpy.ndarray, shape (K, 4)
+        Attitude R_nb as a unit quaternion (w, x, y, z), w ≥ 0.
+    rotation : numpy.ndarray, shape (K, 3, 3)
+        Attitude R_nb (body → navigation), computed from ``quaternion``.
+    """
+
+    t: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    quaternion: np.ndarray
+    rotation: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    def interpolate(self, t) -> NavTrajectory:
+        """Truth at arbitrary times inside [t[0], t[-1]].
+
+        Position: cubic Hermite through the positions and velocities of the two
+        neighbouring poses; velocity: linear; attitude: geodesic (slerp).
+
+        Parameters
+        ----------
+        t : array_like, shape (n,)
+            Query times tau, s.
+
+        Returns
+        -------
+        NavTrajectory
+            Position (n, 3) m, velocity (n, 3) m/s, rotation (n, 3, 3) at ``t``.
+        """
+        tq = np.atleast_1d(np.asarray(t, dtype=float))
+        if tq.ndim != 1 or not np.all(np.isfinite(tq)):
+            raise ValueError(f"t must be a finite scalar or 1-D array of times, got shape {tq.shape}")
+        lo, hi = float(self.t[0]), float(self.t[-1])
+        if tq.size and (tq.min() < lo or tq.max() > hi):
+            raise ValueError(f"t must lie inside the truth's time span [{lo:.4f}, {hi:.4f}] s, "
+                             f"got values in [{tq.min():.4f}, {tq.max():.4f}]")
+        k = np.clip(np.searchsorted(self.t, tq, side="right") - 1, 0, len(self.t) - 2)
+        h = self.t[k + 1] - self.t[k]
+        s = ((tq - self.t[k]) / h)[:, None]
+        p0, p1 = self.position[k], self.position[k + 1]
+        v0, v1 = self.velocity[k], self.velocity[k + 1]
+        hh = h[:, None]
+        pos = ((2 * s**3 - 3 * s**2 + 1) * p0 + (s**3 - 2 * s**2 + s) * hh * v0
+               + (-2 * s**3 + 3 * s**2) * p1 + (s**3 - s**2) * hh * v1)
+        vel = (1 - s) * v0 + s * v1
+        rot = so3.interpolate(self.rotation[k], self.rotation[k + 1], s[:, 0])
+        return NavTrajectory(tq, pos, vel, rot)
+
+    def state_at(self, t: float) -> NavState:
+        """The interpolated truth (see :meth:`interpolate`) at one time ``t``, s."""
+        traj = self.interpolate(np.array([float(t)]))
+        return traj.state(0)
+
+
+@dataclass(frozen=True)
+class LidarData:
+    """Simulated lidar map-matching pose observations at the ground-truth times (~10 Hz).
+
+    Made from the truth as ``p_obs = p + σ_p n_p`` and ``R_obs = R Exp(σ_θ n_θ)`` with
+    n_p, n_θ ~ N(0, I₃) drawn in that order from ``default_rng(seed)`` (see
+    :func:`simulate_lidar_poses`). KITTI has no such stream.
+
+    Attributes
+    ----------
+    t : numpy.ndarray, shape (K,)
+        Observation times tau, s (equal to the truth's).
+    position : numpy.ndarray, shape (K, 3)
+        Observed IMU position, navigation frame, m.
+    quaternion : numpy.ndarray, shape (K, 4)
+        Observed attitude R_nb as (w, x, y, z), w ≥ 0.
+    rotation : numpy.ndarray, shape (K, 3, 3)
+        Observed attitude R_nb.
+    sigma_position : float
+        σ_p, position noise per axis, m.
+    sigma_attitude_deg : float
+        σ_θ, attitude noise per axis of the rotation vector, degrees.
+    seed : int
+        The generator's seed.
+    simulated : bool
+        Always True.
+    """
+
+    t: np.ndarray
+    position: np.ndarray
+    quaternion: np.ndarray
+    rotation: np.ndarray
+    sigma_position: float
+    sigma_attitude_deg: float
+    seed: int
+    simulated: bool = True
+
+    @property
+    def sigma_attitude(self) -> float:
+        """σ_θ in radians."""
+        return float(np.deg2rad(self.sigma_attitude_deg))
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+@dataclass(frozen=True)
+class SlamData:
+    """A real visual-SLAM estimate (from the evo test data), as IMU poses in the nav frame.
+
+    The camera poses were mapped exactly like the ground truth, so the estimate starts at
+    the true pose of frame 0 and then drifts.
+
+    Attributes
+    ----------
+    name : str
+        "ORB-SLAM2" or "S-PTAM".
+    t : numpy.ndarray, shape (K,)
+        Times tau, s (equal to the truth's).
+    position : numpy.ndarray, shape (K, 3)
+        Estimated IMU position, navigation frame, m.
+    quaternion : numpy.ndarray, shape (K, 4)
+        Estimated attitude R_nb as (w, x, y, z), w ≥ 0.
+    rotation : numpy.ndarray, shape (K, 3, 3)
+        Estimated attitude R_nb.
+    """
+
+    name: str
+    t: np.ndarray
+    position: np.ndarray
+    quaternion: np.ndarray
+    rotation: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+@dataclass(frozen=True)
+class FrameInfo:
+    """The calibration and frame constants used to build the excerpt.
+
+    Attributes
+    ----------
+    R_cam_imu : numpy.ndarray, shape (3, 3)
+        Rotation of T_cam_imu (IMU → rectified cam0), orthonormalised.
+    t_cam_imu : numpy.ndarray, shape (3,)
+        Translation of T_cam_imu, m: the IMU origin in cam0 coordinates.
+    R_nav_world : numpy.ndarray, shape (3, 3)
+        Rotation from the KITTI ground-truth world frame (cam0 at frame 0) to the nav frame.
+    t_nav_world : numpy.ndarray, shape (3,)
+        Translation of that map, m.
+    scale : float
+        Scale s of that map: p_n = s R_nav_world p_w + t_nav_world (s = 0.998106, measured).
+    """
+
+    R_cam_imu: np.ndarray
+    t_cam_imu: np.ndarray
+    R_nav_world: np.ndarray
+    t_nav_world: np.ndarray
+    scale: float
+
+    def cam0_position(self, position, rotation) -> np.ndarray:
+        """Position of the cam0 origin, nav frame (m), from IMU poses (K, 3) and (K, 3, 3)."""
+        offset = -self.R_cam_imu.T @ self.t_cam_imu          # cam0 origin in IMU coordinates
+        return (np.asarray(position, dtype=float)
+                + self.scale * np.einsum("...ij,j->...i", np.asarray(rotation, dtype=float), offset))
+
+
+@dataclass(frozen=True)
+class KittiExcerpt:
+    """One excerpt of KITTI sequence 00 (or the whole sequence), ready for filtering.
+
+    Attributes
+    ----------
+    name : str
+        One of :data:`EXCERPTS`.
+    tau_range : tuple of float
+        (start, end) in s; every stream lies inside it.
+    gravity : numpy.ndarray, shape (3,)
+        g_n, gravity in the navigation frame, m/s².
+    imu : ImuData
+    gnss : GnssData
+    truth : TruthData
+    lidar : LidarData
+        Simulated pose observations (``lidar.simulated`` is True).
+    orb_slam2, sptam : SlamData
+        Real visual-SLAM estimates in the same frame.
+    frames : FrameInfo
+    provenance : dict
+        For each stream: PyPI package, version, file inside it, its sha256, and how it was
+        transformed; plus the licence and citation.
+    path : str
+        The file it was loaded from.
+    """
+
+    name: str
+    tau_range: tuple[float, float]
+    gravity: np.ndarray
+    imu: ImuData
+    gnss: GnssData
+    truth: TruthData
+    lidar: LidarData
+    orb_slam2: SlamData
+    sptam: SlamData
+    frames: FrameInfo
+    provenance: dict = field(repr=False)
+    path: str = ""
+
+    @property
+    def duration(self) -> float:
+        """tau_range[1] − tau_range[0], s."""
+        return float(self.tau_range[1] - self.tau_range[0])
+
+    def initial_state(self) -> tuple[int, NavState]:
+        """Index of the first IMU sample at or after the first truth pose, and the truth there.
+
+        Returns
+        -------
+        k0 : int
+            Index into ``imu`` where a filter or dead reckoning can start.
+        state : NavState
+            The interpolated true state at ``imu.t[k0]``.
+        """
+        k0 = int(np.searchsorted(self.imu.t, self.truth.t[0], side="left"))
+        return k0, self.truth.state_at(self.imu.t[k0])
+
+
+# ---------------------------------------------------------------------------------------
+# Noise generators
+# ---------------------------------------------------------------------------------------
+
+def _check_seed(seed) -> int:
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    return int(seed)
+
+
+def _check_sigma(value, name: str) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a non-negative number, got {value!r}") from None
+    if not np.isfinite(v) or v < 0.0:
+        raise ValueError(f"{name} must be a non-negative number, got {value!r}")
+    return v
+
+
+def _rotations_of(record, name: str) -> np.ndarray:
+    if hasattr(record, "rotation"):
+        R = np.asarray(record.rotation, dtype=float)
+    elif hasattr(record, "quaternion"):
+        R = so3.quat_to_matrix(record.quaternion)
+    else:
+        raise ValueError(f"{name} must have a rotation (K, 3, 3) or quaternion (K, 4) attribute")
+    return R
+
+
+def simulate_lidar_poses(truth, seed: int, sigma_position: float = 0.2,
+                         sigma_attitude_deg: float = 0.3) -> LidarData:
+    """Simulate lidar map-matching pose observations from true poses.
+
+    ``p_obs = p + σ_p n_p`` and ``R_obs = R Exp(σ_θ n_θ)`` (noise on the right, in the
+    body frame), with n_p then n_θ, each (K, 3) standard normal, drawn from
+    ``numpy.random.default_rng(seed)``. The shipped excerpts hold the draw for their stored
+    seed, so ``simulate_lidar_poses(ex.truth, ex.lidar.seed)`` reproduces ``ex.lidar``.
+
+    Parameters
+    ----------
+    truth : object
+        Anything with ``t`` (K,) s, ``position`` (K, 3) m and ``rotation`` (K, 3, 3) or
+        ``quaternion`` (K, 4) (for example ``load_kitti("turns").truth``).
+    seed : int
+        Seed for ``numpy.random.default_rng``.
+    sigma_position : float
+        σ_p per axis, m.
+    sigma_attitude_deg : float
+        σ_θ per axis of the attitude noise rotation vector, degrees.
+
+    Returns
+    -------
+    LidarData
+    """
+    seed = _check_seed(seed)
+    sp = _check_sigma(sigma_position, "sigma_position")
+    sa = _check_sigma(sigma_attitude_deg, "sigma_attitude_deg")
+    for attr in ("t", "position"):
+        if not hasattr(truth, attr):
+            raise ValueError(f"truth must have t (K,) and position (K, 3); missing {attr!r}")
+    t = np.asarray(truth.t, dtype=float)
+    p = np.asarray(truth.position, dtype=float)
+    R = _rotations_of(truth, "truth")
+    K = len(t)
+    if t.shape != (K,) or p.shape != (K, 3) or R.shape != (K, 3, 3):
+        raise ValueError(f"truth fields must have shapes t (K,), position (K, 3), rotation (K, 3, 3); "
+                         f"got {t.shape}, {p.shape}, {R.shape}")
+    rng = np.random.default_rng(seed)
+    n_p = rng.standard_normal((K, 3))
+    n_theta = rng.standard_normal((K, 3))
+    position = p + sp * n_p
+    rotation = R @ so3.exp(np.deg2rad(sa) * n_theta)
+    quaternion = so3.matrix_to_quat(rotation)
+    return LidarData(t.copy(), position, quaternion, so3.quat_to_matrix(quaternion), sp, sa, seed)
+
+
+def simulate_gnss(gnss, seed: int, sigma: float = 1.0) -> GnssData:
+    """Add seeded white noise N(0, σ² I₃) to GNSS positions.
+
+    Parameters
+    ----------
+    gnss : object
+        Anything with ``t`` (M,) s and ``position`` (M, 3) m (for example
+        ``load_kitti("turns").gnss``).
+    seed : int
+        Seed for ``numpy.random.default_rng``; the noise is one (M, 3) standard normal draw.
+    sigma : float
+        σ per axis, m.
+
+    Returns
+    -------
+    GnssData
+        A copy with ``position_noisy``, ``sigma`` and ``seed`` set.
+    """
+    seed = _check_seed(seed)
+    sigma = _check_sigma(sigma, "sigma")
+    for attr in ("t", "position"):
+        if not hasattr(gnss, attr):
+            raise ValueError(f"gnss must have t (M,) and position (M, 3); missing {attr!r}")
+    t = np.asarray(gnss.t, dtype=float)
+    p = np.asarray(gnss.position, dtype=float)
+    if t.ndim != 1 or p.shape != (len(t), 3):
+        raise ValueError(f"gnss fields must have shapes t (M,), position (M, 3); got {t.shape}, {p.shape}")
+    rng = np.random.default_rng(seed)
+    noisy = p + sigma * rng.standard_normal(p.shape)
+    return GnssData(t.copy(), p.copy(), noisy, sigma, seed)
+
+
+# ---------------------------------------------------------------------------------------
+# Files
+# ---------------------------------------------------------------------------------------
+
+def kitti_dir() -> Path:
+    """The folder holding the shipped excerpts and ``MANIFEST.json``."""
+    return Path(__file__).resolve().parent / "kitti"
+
+
+def file_sha256(path) -> str:
+    """Hex sha256 of the bytes of the file at ``path``."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def read_manifest(path=None) -> dict:
+    """Read and check a ``MANIFEST.json`` (default: the shipped one).
+
+    Returns
+    -------
+    dict
+        ``{"schema_version": int, "files": {file name: {"sha256", "size", "schema_version",
+        ...}}}``.
+    """
+    path = Path(path) if path is not None else kitti_dir() / "MANIFEST.json"
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: manifest not found (rebuild the data with "
+                                f"`python -m kalman_course.data.build`)")
+    try:
+        manifest = json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path}: manifest is not valid JSON ({exc})") from None
+    files = manifest.get("files") if isinstance(manifest, dict) else None
+    if not isinstance(files, dict):
+        raise ValueError(f"{path}: manifest must hold an object 'files' mapping file names to entries")
+    for fname, entry in files.items():
+        if not isinstance(entry, dict) or not {"sha256", "size", "schema_version"} <= set(entry):
+            raise ValueError(f"{path}: manifest entry {fname!r} must have sha256, size and schema_version")
+    return manifest
+
+
+def _verify_against_manifest(path: Path, manifest) -> None:
+    if not isinstance(manifest, dict):
+        manifest = read_manifest(manifest)
+    entry = manifest["files"].get(path.name)
+    if entry is None:
+        raise ValueError(f"{path}: not listed in the manifest (listed: {', '.join(sorted(manifest['files']))})")
+    size = path.stat().st_size
+    if size < entry["size"]:
+        raise ValueError(f"{path}: file is truncated ({size} bytes, the manifest says {entry['size']}); "
+                         f"reinstall the package or rebuild the data")
+    if size != entry["size"]:
+        raise ValueError(f"{path}: file size {size} bytes differs from the manifest's {entry['size']}")
+    digest = file_sha256(path)
+    if digest != entry["sha256"]:
+        raise ValueError(f"{path}: checksum mismatch (sha256 {digest}, the manifest says {entry['sha256']}); "
+                         f"the file is corrupt or was modified")
+    if entry["schema_version"] != SCHEMA_VERSION:
+        raise ValueError(f"{path}: the manifest lists schema version {entry['schema_version']}, "
+                         f"this loader reads version {SCHEMA_VERSION}")
+
+
+def _read_arrays(path: Path) -> dict[str, np.ndarray]:
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            return {key: npz[key] for key in npz.files}
+    except (zipfile.BadZipFile, zlib.error, EOFError, OSError, ValueError, KeyError) as exc:
+        raise ValueError(f"{path}: file is truncated or corrupt, not a readable .npz archive "
+                         f"({type(exc).__name__}: {exc})") from None
+
+
+def _check_schema(path: Path, arrays: dict[str, np.ndarray]) -> dict:
+    missing = [key for key in _SCHEMA if key not in arrays]
+    if missing:
+        raise ValueError(f"{path}: missing field {missing[0]!r}"
+                         + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""))
+    try:
+        meta = json.loads(str(arrays["meta"]))
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path}: field 'meta' is not valid JSON ({exc})") from None
+    if not isinstance(meta, dict) or any(k not in meta for k in _META_KEYS):
+        raise ValueError(f"{path}: field 'meta' must be an object with keys {', '.join(_META_KEYS)}")
+    if meta["schema_version"] != SCHEMA_VERSION:
+        raise ValueError(f"{path}: schema version {meta['schema_version']}, this loader reads version "
+                         f"{SCHEMA_VERSION}")
+    sizes: dict[str, tuple[int, str]] = {}
+    for key, (kind, shape) in _SCHEMA.items():
+        arr = arrays[key]
+        if arr.dtype.kind != kind:
+            raise ValueError(f"{path}: field {key!r} has dtype {arr.dtype}, expected kind {kind!r}")
+        expected = tuple(sizes[s][0] if isinstance(s, str) and s in sizes else s for s in shape)
+        shown = "(" + ", ".join(str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"
+        ok = arr.ndim == len(shape) and all(isinstance(e, str) or e == a for e, a in zip(expected, arr.shape))
+        if not ok:
+            hint = ""
+            for s, a in zip(shape, arr.shape):
+                if isinstance(s, str) and s in sizes and sizes[s][0] != a:
+                    hint = f"; {s} = {sizes[s][0]} from {sizes[s][1]!r}"
+            raise ValueError(f"{path}: field {key!r} has shape {arr.shape}, expected {shown}{hint}")
+        for s, a in zip(shape, arr.shape):
+            if isinstance(s, str) and s not in sizes:
+                sizes[s] = (a, key)
+        if kind == "f" and not np.all(np.isfinite(arr)):
+            raise ValueError(f"{path}: field {key!r} contains NaN or inf")
+    for key in ("imu/t", "gnss/t", "truth/t"):
+        if len(arrays[key]) < 2 or np.any(np.diff(arrays[key]) <= 0.0):
+            raise ValueError(f"{path}: field {key!r} must hold at least 2 strictly increasing times")
+    for key in ("truth/quaternion", "lidar/quaternion", "orb_slam2/quaternion", "sptam/quaternion"):
+        err = np.abs(np.linalg.norm(arrays[key], axis=1) - 1.0).max()
+        if err > 1e-9:
+            raise ValueError(f"{path}: field {key!r} must hold unit quaternions (max | |q| − 1 | = {err:.3g})")
+    return meta
+
+
+def load_excerpt_file(path, manifest=None) -> KittiExcerpt:
+    """Load and validate one excerpt file.
+
+    Parameters
+    ----------
+    path : str or Path
+        An excerpt ``.npz`` written by ``kalman_course.data.build``.
+    manifest : dict, str, Path or None
+        A manifest (parsed, or the path of a ``MANIFEST.json``) to check the file's size
+        and sha256 against; None skips the checksum (the schema is always checked).
+
+    Returns
+    -------
+    KittiExcerpt
+
+    Raises
+    ------
+    FileNotFoundError
+        If the file does not exist.
+    ValueError
+        If the file is truncated, corrupt, fails its checksum, or lacks a field or has one
+        of the wrong shape; the message names the file and the problem.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: KITTI excerpt file not found (rebuild the data with "
+                                f"`python -m kalman_course.data.build`)")
+    if manifest is not None:
+        _verify_against_manifest(path, manifest)
+    arrays = _read_arrays(path)
+    meta = _check_schema(path, arrays)
+    a = {key: _frozen(np.asarray(value, dtype=float if value.dtype.kind == "f" else None, order="C"))
+         for key, value in arrays.items()}
+
+    def rotations(key: str) -> np.ndarray:
+        return _frozen(so3.quat_to_matrix(a[key]))
+
+    imu = ImuData(a["imu/t"], a["imu/specific_force"], a["imu/angular_rate"], a["imu/interpolated"])
+    gnss = GnssData(a["gnss/t"], a["gnss/position"], a["gnss/position_noisy"],
+                    float(meta["gnss"]["sigma"]), int(meta["gnss"]["seed"]))
+    truth = TruthData(a["truth/t"], a["truth/position"], a["truth/velocity"], a["truth/quaternion"],
+                      rotations("truth/quaternion"))
+    lidar = LidarData(a["truth/t"], a["lidar/position"], a["lidar/quaternion"], rotations("lidar/quaternion"),
+                      float(meta["lidar"]["sigma_position"]), float(meta["lidar"]["sigma_attitude_deg"]),
+                      int(meta["lidar"]["seed"]))
+    orb = SlamData("ORB-SLAM2", a["truth/t"], a["orb_slam2/position"], a["orb_slam2/quaternion"],
+                   rotations("orb_slam2/quaternion"))
+    sptam = SlamData("S-PTAM", a["truth/t"], a["sptam/position"], a["sptam/quaternion"],
+                     rotations("sptam/quaternion"))
+    frames = FrameInfo(a["frames/R_cam_imu"], a["frames/t_cam_imu"], a["frames/R_nav_world"],
+                       a["frames/t_nav_world"], float(a["frames/scale"]))
+    tau_range = (float(meta["tau_range"][0]), float(meta["tau_range"][1]))
+    return KittiExcerpt(meta["name"], tau_range, a["gravity"], imu, gnss, truth, lidar, orb, sptam,
+                        frames, meta["provenance"], str(path))
+
+
+@functools.lru_cache(maxsize=8)
+def _load_cached(path: str, size: int, mtime_ns: int, manifest_path: str) -> KittiExcerpt:
+    return load_excerpt_file(path, manifest=manifest_path)
+
+
+def load_kitti(name: str) -> KittiExcerpt:
+    """Load a shipped KITTI excerpt by name, verifying its checksum and schema.
+
+    Parameters
+    ----------
+    name : str
+        "cruise" (tau 421.5–452.0 s: steady speed, one gentle curve), "turns"
+        (310–370 s: 534° of heading change), "stop_go" (40–100 s: a short stop and turns)
+        or "seq00" (the whole sequence, 0–470.6 s).
+
+    Returns
+    -------
+    KittiExcerpt
+        Arrays are read-only; repeated loads of an unchanged file return the same object.
+    """
+    if name not in EXCERPTS:
+        raise ValueError(f"unknown KITTI excerpt {name!r}; valid names: {', '.join(EXCERPTS)}")
+    folder = kitti_dir()
+    path = folder / f"{name}.npz"
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: KITTI excerpt file not found (rebuild the data with "
+                                f"`python -m kalman_course.data.build`)")
+    stat = path.stat()
+    return _load_cached(str(path), stat.st_size, stat.st_mtime_ns, str(folder / "MANIFEST.json"))

@@ -1,0 +1,634 @@
+"""Seeded synthetic scenarios with exact ground truth.
+
+Every generator takes a ``seed`` and draws all of its randomness from
+``numpy.random.default_rng(seed)`` in a documented order, so a scenario is fully
+determined by its arguments.
+
+- :func:`random_walk_1d`: a scalar random walk observed with noise (chapter 03);
+- :func:`cv_target`: a constant-velocity target in 1–3 dimensions observed in position;
+- :func:`ctrv_lidar_radar`: a CTRV target observed alternately by lidar (x, y) and radar
+  (range, bearing, range rate), as in the EKF fusion exercise (chapter 05);
+- :func:`imu_trajectory`: a vehicle-like 3-D trajectory with the IMU readings that
+  reproduce it exactly under the course's midpoint mechanisation (chapters 07–09).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterator
+
+import numpy as np
+
+from kalman_course import so3
+from kalman_course.data.kitti import ImuData
+from kalman_course.imu import NavState, dead_reckon
+from kalman_course.validation import as_covariance, as_vector
+
+__all__ = [
+    "RandomWalk1D", "random_walk_1d", "CVTarget", "cv_target", "Measurement", "CTRVScenario",
+    "ctrv_lidar_radar", "ctrv_step", "radar_measurement", "ImuScenario", "imu_trajectory",
+]
+
+
+def _seed(seed) -> int:
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    return int(seed)
+
+
+def _positive(value, name: str, allow_zero: bool = False) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    if not np.isfinite(v) or v < 0.0 or (v == 0.0 and not allow_zero):
+        kind = "non-negative" if allow_zero else "positive"
+        raise ValueError(f"{name} must be a finite {kind} number, got {value!r}")
+    return v
+
+
+def _count(value, name: str) -> int:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    return int(value)
+
+
+# ---------------------------------------------------------------------------------------
+# 1-D random walk
+# ---------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class RandomWalk1D:
+    """A scalar random walk x_k = x_{k−1} + w_k observed as z_k = x_k + v_k.
+
+    Attributes
+    ----------
+    x : numpy.ndarray, shape (n,)
+        True states x_1 … x_n.
+    z : numpy.ndarray, shape (n,)
+        Measurements z_1 … z_n.
+    x0 : float
+        The known initial state x_0.
+    q : float
+        Process noise variance, Var(w_k) (units of x squared per step).
+    r : float
+        Measurement noise variance, Var(v_k).
+    seed : int
+    """
+
+    x: np.ndarray
+    z: np.ndarray
+    x0: float
+    q: float
+    r: float
+    seed: int
+
+    def __len__(self) -> int:
+        return len(self.x)
+
+
+def random_walk_1d(n_steps: int, q: float, r: float, seed: int, x0: float = 0.0) -> RandomWalk1D:
+    """Simulate a 1-D random walk and its noisy measurements.
+
+    Parameters
+    ----------
+    n_steps : int
+        Number of steps n.
+    q : float
+        Process noise variance per step (≥ 0).
+    r : float
+        Measurement noise variance (≥ 0).
+    seed : int
+        Seed; draws w (n,) then v (n,), each standard normal, scaled by √q and √r.
+    x0 : float
+        Initial state.
+
+    Returns
+    -------
+    RandomWalk1D
+    """
+    n = _count(n_steps, "n_steps")
+    q = _positive(q, "q", allow_zero=True)
+    r = _positive(r, "r", allow_zero=True)
+    x0 = float(x0)
+    rng = np.random.default_rng(_seed(seed))
+    w = np.sqrt(q) * rng.standard_normal(n)
+    v = np.sqrt(r) * rng.standard_normal(n)
+    x = x0 + np.cumsum(w)
+    return RandomWalk1D(x, x + v, x0, q, r, int(seed))
+
+
+# ---------------------------------------------------------------------------------------
+# Constant-velocity target
+# ---------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class CVTarget:
+    """A constant-velocity target driven by white acceleration, observed in position.
+
+    The state is x = [p, v] (positions of all axes, then velocities), length 2d. The
+    acceleration is constant over each step and white between steps, so the exact discrete
+    model is x_k = F x_{k−1} + G a_k, a_k ~ N(0, σ_a² I_d), with Q = σ_a² G Gᵀ, and
+    z_k = H x_k + n_k, n_k ~ N(0, σ_z² I_d).
+
+    Attributes
+    ----------
+    t : numpy.ndarray, shape (n,)
+        Times t_k = k·dt, k = 1 … n, s.
+    x : numpy.ndarray, shape (n, 2d)
+        True states [p (m), v (m/s)].
+    z : numpy.ndarray, shape (n, d)
+        Position measurements, m.
+    x0 : numpy.ndarray, shape (2d,)
+        Initial state at t = 0.
+    F : numpy.ndarray, shape (2d, 2d)
+        [[I, dt I], [0, I]].
+    G : numpy.ndarray, shape (2d, d)
+        [[dt²/2 I], [dt I]].
+    Q : numpy.ndarray, shape (2d, 2d)
+        σ_a² G Gᵀ.
+    H : numpy.ndarray, shape (d, 2d)
+        [I, 0].
+    R : numpy.ndarray, shape (d, d)
+        σ_z² I.
+    dt, sigma_a, sigma_meas : float
+        Step (s), acceleration noise σ_a (m/s²), measurement noise σ_z (m).
+    seed : int
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    z: np.ndarray
+    x0: np.ndarray
+    F: np.ndarray
+    G: np.ndarray
+    Q: np.ndarray
+    H: np.ndarray
+    R: np.ndarray
+    dt: float
+    sigma_a: float
+    sigma_meas: float
+    seed: int
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+def cv_target(n_steps: int, dt: float, sigma_a: float, sigma_meas: float, seed: int, dim: int = 2,
+              x0=None) -> CVTarget:
+    """Simulate a constant-velocity target and its position measurements.
+
+    Parameters
+    ----------
+    n_steps : int
+        Number of steps n.
+    dt : float
+        Step, s.
+    sigma_a : float
+        Standard deviation of the acceleration per axis, m/s².
+    sigma_meas : float
+        Standard deviation of the position measurement per axis, m.
+    seed : int
+        Seed; draws the accelerations (n, d) then the measurement noise (n, d).
+    dim : int
+        Number of spatial axes d (1, 2 or 3).
+    x0 : array_like, shape (2d,), optional
+        Initial state [p, v]; default p = 0, v = 1 m/s on every axis.
+
+    Returns
+    -------
+    CVTarget
+    """
+    n = _count(n_steps, "n_steps")
+    dt = _positive(dt, "dt")
+    sigma_a = _positive(sigma_a, "sigma_a", allow_zero=True)
+    sigma_meas = _positive(sigma_meas, "sigma_meas", allow_zero=True)
+    if dim not in (1, 2, 3):
+        raise ValueError(f"dim must be 1, 2 or 3, got {dim!r}")
+    d = int(dim)
+    x0 = np.concatenate([np.zeros(d), np.ones(d)]) if x0 is None else as_vector(x0, "x0", 2 * d)
+    I, Z = np.eye(d), np.zeros((d, d))
+    F = np.block([[I, dt * I], [Z, I]])
+    G = np.vstack([0.5 * dt * dt * I, dt * I])
+    Q = sigma_a**2 * G @ G.T
+    H = np.hstack([I, Z])
+    R = sigma_meas**2 * I
+    rng = np.random.default_rng(_seed(seed))
+    accel = sigma_a * rng.standard_normal((n, d))
+    meas_noise = sigma_meas * rng.standard_normal((n, d))
+    x = np.empty((n, 2 * d))
+    state = x0.copy()
+    for k in range(n):
+        state = F @ state + G @ accel[k]
+        x[k] = state
+    z = x @ H.T + meas_noise
+    t = dt * np.arange(1, n + 1)
+    return CVTarget(t, x, z, x0.copy(), F, G, Q, H, R, dt, sigma_a, sigma_meas, int(seed))
+
+
+# ---------------------------------------------------------------------------------------
+# CTRV target, lidar and radar
+# ---------------------------------------------------------------------------------------
+
+#: Lidar noise of the seed article: σ = 0.15 m on x and y.
+R_LIDAR_DEFAULT = ((0.0225, 0.0), (0.0, 0.0225))
+#: Radar noise of the seed article: σ = 0.3 m (range), 0.03 rad (bearing), 0.3 m/s (range rate).
+R_RADAR_DEFAULT = ((0.09, 0.0, 0.0), (0.0, 0.0009, 0.0), (0.0, 0.0, 0.09))
+
+
+def ctrv_step(x, dt: float, nu_a: float = 0.0, nu_yaw_acc: float = 0.0) -> np.ndarray:
+    """One step of the CTRV model with its process noise held constant over the step.
+
+    Parameters
+    ----------
+    x : array_like, shape (5,)
+        State [p_x (m), p_y (m), v (m/s), ψ (rad), ψ̇ (rad/s)].
+    dt : float
+        Step, s.
+    nu_a, nu_yaw_acc : float
+        Longitudinal acceleration (m/s²) and yaw acceleration (rad/s²) noise over the step.
+
+    Returns
+    -------
+    numpy.ndarray, shape (5,)
+        The next state. For |ψ̇| < 1e-6 rad/s the straight-line limit is used.
+    """
+    px, py, v, yaw, yaw_rate = as_vector(x, "x", 5)
+    if abs(yaw_rate) > 1e-6:
+        px1 = px + v / yaw_rate * (np.sin(yaw + yaw_rate * dt) - np.sin(yaw))
+        py1 = py + v / yaw_rate * (np.cos(yaw) - np.cos(yaw + yaw_rate * dt))
+    else:
+        px1 = px + v * np.cos(yaw) * dt
+        py1 = py + v * np.sin(yaw) * dt
+    h = 0.5 * dt * dt
+    return np.array([px1 + h * np.cos(yaw) * nu_a,
+                     py1 + h * np.sin(yaw) * nu_a,
+                     v + dt * nu_a,
+                     yaw + yaw_rate * dt + h * nu_yaw_acc,
+                     yaw_rate + dt * nu_yaw_acc])
+
+
+def radar_measurement(x) -> np.ndarray:
+    """Noise-free radar measurement [ρ (m), φ (rad, in (−π, π]), ρ̇ (m/s)] of a CTRV state (5,)."""
+    px, py, v, yaw, _ = as_vector(x, "x", 5)
+    rho = np.hypot(px, py)
+    if rho < 1e-9:
+        raise ValueError("x must not be at the radar's position (range 0 has no bearing)")
+    return np.array([rho, np.arctan2(py, px), (px * v * np.cos(yaw) + py * v * np.sin(yaw)) / rho])
+
+
+def _wrap(angle):
+    return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """One sensor reading.
+
+    Attributes
+    ----------
+    t : float
+        Time, s.
+    sensor : str
+        "lidar" (z = [p_x, p_y] in m) or "radar" (z = [ρ m, φ rad, ρ̇ m/s]).
+    z : numpy.ndarray, shape (2,) or (3,)
+    R : numpy.ndarray, shape (2, 2) or (3, 3)
+        The sensor's noise covariance.
+    index : int
+        Index of the matching true state in the scenario's ``t`` and ``x``.
+    """
+
+    t: float
+    sensor: str
+    z: np.ndarray
+    R: np.ndarray
+    index: int
+
+
+@dataclass(frozen=True)
+class CTRVScenario:
+    """A CTRV target seen alternately by a lidar and a radar at the origin.
+
+    Attributes
+    ----------
+    t : numpy.ndarray, shape (n,)
+        Measurement times, s (one sensor at each, alternating, starting with lidar).
+    x : numpy.ndarray, shape (n, 5)
+        True state at each time: [p_x (m), p_y (m), v (m/s), ψ (rad, unwrapped), ψ̇ (rad/s)].
+    sensor : numpy.ndarray of str, shape (n,)
+        "lidar" or "radar" for each time.
+    x0 : numpy.ndarray, shape (5,)
+        True state at t = 0 (the first measurement is at t = dt).
+    lidar_index, radar_index : numpy.ndarray of int, shapes (L,), (M,)
+        Indices into ``t`` / ``x`` of the lidar and of the radar measurements.
+    lidar_z : numpy.ndarray, shape (L, 2)
+        Lidar measurements [p_x, p_y], m.
+    radar_z : numpy.ndarray, shape (M, 3)
+        Radar measurements [ρ (m), φ (rad, wrapped to (−π, π]), ρ̇ (m/s)].
+    R_lidar : numpy.ndarray, shape (2, 2)
+    R_radar : numpy.ndarray, shape (3, 3)
+    dt : float
+        Interval between consecutive measurements, s.
+    sigma_a : float
+        Longitudinal acceleration noise σ_a, m/s².
+    sigma_yaw_acc : float
+        Yaw acceleration noise σ_ψ̈, rad/s².
+    seed : int
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    sensor: np.ndarray
+    x0: np.ndarray
+    lidar_index: np.ndarray
+    lidar_z: np.ndarray
+    radar_index: np.ndarray
+    radar_z: np.ndarray
+    R_lidar: np.ndarray
+    R_radar: np.ndarray
+    dt: float
+    sigma_a: float
+    sigma_yaw_acc: float
+    seed: int
+
+    @property
+    def lidar_t(self) -> np.ndarray:
+        """Lidar measurement times, s, shape (L,)."""
+        return self.t[self.lidar_index]
+
+    @property
+    def radar_t(self) -> np.ndarray:
+        """Radar measurement times, s, shape (M,)."""
+        return self.t[self.radar_index]
+
+    def measurements(self) -> Iterator[Measurement]:
+        """Yield every measurement in time order."""
+        lidar_row = {int(k): i for i, k in enumerate(self.lidar_index)}
+        radar_row = {int(k): i for i, k in enumerate(self.radar_index)}
+        for k in range(len(self.t)):
+            if k in lidar_row:
+                yield Measurement(float(self.t[k]), "lidar", self.lidar_z[lidar_row[k]], self.R_lidar, k)
+            else:
+                yield Measurement(float(self.t[k]), "radar", self.radar_z[radar_row[k]], self.R_radar, k)
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+def ctrv_lidar_radar(seed: int, duration: float = 25.0, dt: float = 0.05, sigma_a: float = 3.0,
+                     sigma_yaw_acc: float = 0.3, R_lidar=R_LIDAR_DEFAULT, R_radar=R_RADAR_DEFAULT,
+                     x0=(5.0, 2.0, 5.0, 0.5, 0.1)) -> CTRVScenario:
+    """Simulate a CTRV target observed by interleaved lidar and radar measurements.
+
+    The truth follows :func:`ctrv_step` from ``x0`` with noise ν_a ~ N(0, σ_a²) and
+    ν_ψ̈ ~ N(0, σ_ψ̈²) drawn for every step. A measurement is taken every ``dt`` seconds,
+    alternately lidar (first, at t = dt) and radar. Lidar: z = [p_x, p_y] + N(0, R_lidar);
+    radar: z = [ρ, φ, ρ̇] + N(0, R_radar), with φ wrapped to (−π, π]. The noise values
+    are those of the seed article: R_lidar = diag(0.0225, 0.0225),
+    R_radar = diag(0.09, 0.0009, 0.09), σ_a = 3 m/s².
+
+    Parameters
+    ----------
+    seed : int
+        Seed; draws ν_a (n,), ν_ψ̈ (n,), then the lidar noise (L, 2), then the radar noise
+        (M, 3), all standard normal (the measurement noise through a Cholesky factor of R).
+    duration : float
+        Length of the scenario, s; n = round(duration/dt) measurements.
+    dt : float
+        Interval between consecutive measurements (of either sensor), s.
+    sigma_a : float
+        Longitudinal acceleration noise, m/s².
+    sigma_yaw_acc : float
+        Yaw acceleration noise, rad/s².
+    R_lidar : array_like, shape (2, 2)
+    R_radar : array_like, shape (3, 3)
+    x0 : array_like, shape (5,)
+        Initial state [p_x, p_y, v, ψ, ψ̇].
+
+    Returns
+    -------
+    CTRVScenario
+    """
+    seed = _seed(seed)
+    duration = _positive(duration, "duration")
+    dt = _positive(dt, "dt")
+    sigma_a = _positive(sigma_a, "sigma_a", allow_zero=True)
+    sigma_yaw_acc = _positive(sigma_yaw_acc, "sigma_yaw_acc", allow_zero=True)
+    R_l = as_covariance(R_lidar, "R_lidar", 2, positive_definite=True)
+    R_r = as_covariance(R_radar, "R_radar", 3, positive_definite=True)
+    x0 = as_vector(x0, "x0", 5)
+    n = int(round(duration / dt))
+    if n < 2:
+        raise ValueError(f"duration must cover at least two measurements of dt = {dt} s, got {duration}")
+    rng = np.random.default_rng(seed)
+    nu_a = sigma_a * rng.standard_normal(n)
+    nu_yaw = sigma_yaw_acc * rng.standard_normal(n)
+    x = np.empty((n, 5))
+    state = x0.copy()
+    for k in range(n):
+        state = ctrv_step(state, dt, nu_a[k], nu_yaw[k])
+        x[k] = state
+    t = dt * np.arange(1, n + 1)
+    lidar_index = np.arange(0, n, 2)
+    radar_index = np.arange(1, n, 2)
+    lidar_noise = rng.standard_normal((len(lidar_index), 2)) @ np.linalg.cholesky(R_l).T
+    radar_noise = rng.standard_normal((len(radar_index), 3)) @ np.linalg.cholesky(R_r).T
+    lidar_z = x[lidar_index, :2] + lidar_noise
+    radar_z = np.array([radar_measurement(x[k]) for k in radar_index]) + radar_noise
+    radar_z[:, 1] = _wrap(radar_z[:, 1])
+    sensor = np.where(np.arange(n) % 2 == 0, "lidar", "radar")
+    return CTRVScenario(t, x, sensor, x0.copy(), lidar_index, lidar_z, radar_index, radar_z,
+                        R_l, R_r, dt, sigma_a, sigma_yaw_acc, seed)
+
+
+# ---------------------------------------------------------------------------------------
+# IMU trajectory
+# ---------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class ImuScenario:
+    """A 3-D vehicle trajectory with exact truth and simulated IMU readings.
+
+    The clean readings are the exact specific force and angular rate of a smooth analytic
+    motion at the sample times; the truth is what the course's midpoint mechanisation
+    (:func:`kalman_course.imu.dead_reckon`) makes of them from the true initial state, so
+    integrating ``imu_clean`` reproduces the truth to round-off. (It differs from the
+    analytic motion by the integration error, millimetres after a minute at 100 Hz.)
+
+    The measured readings add, per sample k with step dt,
+    ``f̃_k = f_k + b_a,k + n_a,k`` and ``ω̃_k = ω_k + b_ω,k + n_ω,k`` with
+    n ~ N(0, (density/√dt)² I) and biases that follow random walks
+    ``b_{k+1} = b_k + density_b √dt N(0, I)``.
+
+    Attributes
+    ----------
+    t : numpy.ndarray, shape (N,)
+        Sample times, s.
+    position : numpy.ndarray, shape (N, 3)
+        True position, navigation frame (z up), m.
+    velocity : numpy.ndarray, shape (N, 3)
+        True velocity, m/s.
+    rotation : numpy.ndarray, shape (N, 3, 3)
+        True attitude R_nb.
+    quaternion : numpy.ndarray, shape (N, 4)
+        True attitude as (w, x, y, z), w ≥ 0.
+    imu : ImuData
+        Measured (noisy, biased) readings: specific force m/s², angular rate rad/s.
+    imu_clean : ImuData
+        Noise-free, bias-free readings.
+    accel_bias : numpy.ndarray, shape (N, 3)
+        True accelerometer bias b_a at each sample, m/s².
+    gyro_bias : numpy.ndarray, shape (N, 3)
+        True gyroscope bias b_ω at each sample, rad/s.
+    gravity : numpy.ndarray, shape (3,)
+        g_n, m/s².
+    accel_noise_density : float
+        Continuous white-noise density of the accelerometer, m/s²/√Hz.
+    gyro_noise_density : float
+        Continuous white-noise density of the gyroscope, rad/s/√Hz.
+    accel_bias_density : float
+        Density of the accelerometer bias random walk, m/s³/√Hz.
+    gyro_bias_density : float
+        Density of the gyroscope bias random walk, rad/s²/√Hz.
+    seed : int
+    """
+
+    t: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    rotation: np.ndarray
+    quaternion: np.ndarray
+    imu: ImuData
+    imu_clean: ImuData
+    accel_bias: np.ndarray
+    gyro_bias: np.ndarray
+    gravity: np.ndarray
+    accel_noise_density: float
+    gyro_noise_density: float
+    accel_bias_density: float
+    gyro_bias_density: float
+    seed: int
+
+    def state(self, k: int) -> NavState:
+        """The true state at sample ``k``."""
+        return NavState(self.position[k].copy(), self.velocity[k].copy(), self.rotation[k].copy())
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+def _analytic_motion(t: np.ndarray, gravity: np.ndarray):
+    """Closed-form motion: returns p0, v0, R (N,3,3), ω_b (N,3) and f_b (N,3)."""
+    two_pi = 2.0 * np.pi
+    # speed s(t) and its derivative (m/s, m/s²)
+    speed = 8.0 + 3.0 * np.sin(two_pi * t / 20.0)
+    dspeed = 3.0 * two_pi / 20.0 * np.cos(two_pi * t / 20.0)
+    # yaw ψ(t) and rate (rad, rad/s)
+    yaw_rate = 0.05 + 0.25 * np.sin(two_pi * t / 12.0)
+    yaw = 0.05 * t - 0.25 * 12.0 / two_pi * (np.cos(two_pi * t / 12.0) - 1.0)
+    # pitch θ and roll φ: small oscillations (rad, rad/s)
+    pitch = 0.03 * np.sin(two_pi * t / 9.0)
+    dpitch = 0.03 * two_pi / 9.0 * np.cos(two_pi * t / 9.0)
+    roll = 0.04 * np.sin(two_pi * t / 7.0)
+    droll = 0.04 * two_pi / 7.0 * np.cos(two_pi * t / 7.0)
+    # height z(t) = sin(2π t/25) m
+    w_z = two_pi / 25.0
+    dz = w_z * np.cos(w_z * t)
+    ddz = -w_z * w_z * np.sin(w_z * t)
+
+    c, s = np.cos(yaw), np.sin(yaw)
+    zero, one = np.zeros_like(t), np.ones_like(t)
+    vel = np.stack([speed * c, speed * s, dz], axis=1)
+    acc = np.stack([dspeed * c - speed * yaw_rate * s, dspeed * s + speed * yaw_rate * c, ddz], axis=1)
+
+    def rot_x(a):
+        ca, sa = np.cos(a), np.sin(a)
+        return np.stack([np.stack([one, zero, zero], -1), np.stack([zero, ca, -sa], -1),
+                         np.stack([zero, sa, ca], -1)], -2)
+
+    def rot_y(a):
+        ca, sa = np.cos(a), np.sin(a)
+        return np.stack([np.stack([ca, zero, sa], -1), np.stack([zero, one, zero], -1),
+                         np.stack([-sa, zero, ca], -1)], -2)
+
+    def rot_z(a):
+        ca, sa = np.cos(a), np.sin(a)
+        return np.stack([np.stack([ca, -sa, zero], -1), np.stack([sa, ca, zero], -1),
+                         np.stack([zero, zero, one], -1)], -2)
+
+    Rx, Ry = rot_x(roll), rot_y(pitch)
+    R = rot_z(yaw) @ Ry @ Rx
+    ez = np.stack([zero, zero, yaw_rate], -1)
+    ey = np.stack([zero, dpitch, zero], -1)
+    ex = np.stack([droll, zero, zero], -1)
+    RyRx = Ry @ Rx
+    omega = (np.einsum("kji,kj->ki", RyRx, ez) + np.einsum("kji,kj->ki", Rx, ey) + ex)
+    f = np.einsum("kji,kj->ki", R, acc - gravity)
+    p0 = np.array([0.0, 0.0, np.sin(w_z * t[0])])
+    return p0, vel[0], R, omega, f, vel, acc
+
+
+def imu_trajectory(seed: int, duration: float = 60.0, rate: float = 100.0,
+                   accel_noise_density: float = 0.01, gyro_noise_density: float = 1.75e-4,
+                   accel_bias_density: float = 1.67e-4, gyro_bias_density: float = 2.91e-6,
+                   accel_bias0=(0.0, 0.0, 0.0), gyro_bias0=(0.0, 0.0, 0.0),
+                   gravity=(0.0, 0.0, -9.8092)) -> ImuScenario:
+    """Simulate a vehicle-like trajectory and its IMU readings with exact ground truth.
+
+    The motion (speed 5–11 m/s, yaw rate up to 0.3 rad/s, a few degrees of roll and
+    pitch, ±1 m of height) is analytic; see :class:`ImuScenario` for how truth and
+    readings relate. The default noise densities are those of the KITTI IMU metadata.
+
+    Parameters
+    ----------
+    seed : int
+        Seed; draws, in this order, accelerometer white noise (N, 3), gyroscope white
+        noise (N, 3), accelerometer bias increments (N−1, 3), gyroscope bias increments
+        (N−1, 3), all standard normal.
+    duration : float
+        Length, s.
+    rate : float
+        Sample rate, Hz; N = round(duration·rate) + 1 samples at t = k/rate.
+    accel_noise_density, gyro_noise_density : float
+        White-noise densities, m/s²/√Hz and rad/s/√Hz (per-sample σ = density·√rate).
+    accel_bias_density, gyro_bias_density : float
+        Bias random-walk densities, m/s³/√Hz and rad/s²/√Hz.
+    accel_bias0, gyro_bias0 : array_like, shape (3,)
+        Biases at t = 0, m/s² and rad/s.
+    gravity : array_like, shape (3,)
+        g_n, m/s².
+
+    Returns
+    -------
+    ImuScenario
+    """
+    seed = _seed(seed)
+    duration = _positive(duration, "duration")
+    rate = _positive(rate, "rate")
+    nd_a = _positive(accel_noise_density, "accel_noise_density", allow_zero=True)
+    nd_w = _positive(gyro_noise_density, "gyro_noise_density", allow_zero=True)
+    bd_a = _positive(accel_bias_density, "accel_bias_density", allow_zero=True)
+    bd_w = _positive(gyro_bias_density, "gyro_bias_density", allow_zero=True)
+    b_a0 = as_vector(accel_bias0, "accel_bias0", 3)
+    b_w0 = as_vector(gyro_bias0, "gyro_bias0", 3)
+    g = as_vector(gravity, "gravity", 3)
+    n = int(round(duration * rate)) + 1
+    if n < 2:
+        raise ValueError(f"duration·rate must give at least two samples, got duration={duration}, rate={rate}")
+    t = np.arange(n) / rate
+    dt = 1.0 / rate
+
+    p0, v0, R_an, omega, f, _, _ = _analytic_motion(t, g)
+    clean = ImuData(t, f, omega, np.zeros(n, dtype=bool))
+    truth = dead_reckon(clean, NavState(p0, v0, R_an[0]), g)
+
+    rng = np.random.default_rng(seed)
+    n_a = nd_a / np.sqrt(dt) * rng.standard_normal((n, 3))
+    n_w = nd_w / np.sqrt(dt) * rng.standard_normal((n, 3))
+    steps_a = bd_a * np.sqrt(dt) * rng.standard_normal((n - 1, 3))
+    steps_w = bd_w * np.sqrt(dt) * rng.standard_normal((n - 1, 3))
+    b_a = b_a0 + np.vstack([np.zeros(3), np.cumsum(steps_a, axis=0)])
+    b_w = b_w0 + np.vstack([np.zeros(3), np.cumsum(steps_w, axis=0)])
+    measured = ImuData(t, f + b_a + n_a, omega + b_w + n_w, np.zeros(n, dtype=bool))
+    return ImuScenario(t, truth.position, truth.velocity, truth.rotation, so3.matrix_to_quat(truth.rotation),
+                       measured, clean, b_a, b_w, g, nd_a, nd_w, bd_a, bd_w, seed)
