@@ -548,8 +548,8 @@ def _verify_against_manifest(path: Path, manifest) -> None:
         raise ValueError(f"{path}: not listed in the manifest (listed: {', '.join(sorted(manifest['files']))})")
     size = path.stat().st_size
     if size < entry["size"]:
-        raise ValueError(f"{path}: file is truncated ({size} bytes, the manifest says {entry['size']}); "
-                         f"reinstall the package or rebuild the data")
+        raise ValueError(f"{path}: file is truncated or modified ({size} bytes, the manifest says "
+                         f"{entry['size']}); reinstall the package or rebuild the data")
     if size != entry["size"]:
         raise ValueError(f"{path}: file size {size} bytes differs from the manifest's {entry['size']}")
     digest = file_sha256(path)
