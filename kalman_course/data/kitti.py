@@ -670,8 +670,17 @@ def load_excerpt_file(path, manifest=None) -> KittiExcerpt:
 
 
 @functools.lru_cache(maxsize=8)
-def _load_cached(path: str, size: int, mtime_ns: int, manifest_path: str) -> KittiExcerpt:
+def _load_cached(path: str, stamp: tuple, manifest_path: str, manifest_stamp: tuple) -> KittiExcerpt:
+    # the stamps (size, mtime) only make the cache notice a changed file
     return load_excerpt_file(path, manifest=manifest_path)
+
+
+def _stamp(path: Path) -> tuple:
+    try:
+        st = path.stat()
+    except OSError:
+        return ()
+    return (st.st_size, st.st_mtime_ns)
 
 
 def load_kitti(name: str) -> KittiExcerpt:
@@ -696,5 +705,5 @@ def load_kitti(name: str) -> KittiExcerpt:
     if not path.is_file():
         raise FileNotFoundError(f"{path}: KITTI excerpt file not found (rebuild the data with "
                                 f"`python -m kalman_course.data.build`)")
-    stat = path.stat()
-    return _load_cached(str(path), stat.st_size, stat.st_mtime_ns, str(folder / "MANIFEST.json"))
+    manifest = folder / "MANIFEST.json"
+    return _load_cached(str(path), _stamp(path), str(manifest), _stamp(manifest))
