@@ -54,7 +54,8 @@ class KFUpdate(NamedTuple):
     innovation : ndarray, shape (m,)
         :math:`y - G \\check x`.
     S : ndarray, shape (m, m)
-        Innovation covariance :math:`G \\check P G^T + C R C^T`.
+        Innovation covariance :math:`G \\check P G^T + C R C^T` (symmetric up to
+        round-off; :func:`innovation_covariance` returns it exactly symmetrised).
     K : ndarray, shape (n, m)
         Kalman gain :math:`\\check P G^T S^{-1}`.
     """

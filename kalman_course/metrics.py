@@ -150,8 +150,8 @@ def nees(error, P):
     Parameters
     ----------
     error : array_like, shape (n,) or (N, n)
-        Estimation error e = estimate − truth, one row per step for a batch. Rows
-        containing NaN give NaN.
+        Estimation error e = estimate − truth, one row per step for a batch. In a batch,
+        rows containing NaN give NaN; a single vector must be finite.
     P : array_like, shape (n, n) or (N, n, n)
         The covariance the filter reported for that error, symmetric positive definite.
         A single (n, n) matrix is used for every row of a batch.
