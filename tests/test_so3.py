@@ -190,3 +190,15 @@ def test_interpolate_and_angle(rng):
 def test_bad_input_names_the_argument(func, bad, msg):
     with pytest.raises(ValueError, match=msg):
         func(bad)
+
+
+def test_log_handles_a_mixed_batch_of_angles(rng):
+    angles = np.array([0.0, 1e-10, 1e-5, 0.5, 2.0, np.pi - 5e-3, np.pi - 1e-7, 3.0])
+    axis = rng.standard_normal((len(angles), 3))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    phi = angles[:, None] * axis
+    got = so3.log(so3.exp(phi))
+    assert got.shape == (len(angles), 3)
+    np.testing.assert_allclose(got, phi, atol=1e-9)
+    for k in range(len(angles)):   # the batch gives what single calls give
+        np.testing.assert_allclose(so3.log(so3.exp(phi[k])), got[k], atol=1e-15)

@@ -45,6 +45,9 @@ __all__ = ["main", "build", "write_npz", "excerpt_arrays", "read_sources", "SOUR
 
 GTSAM = ("gtsam", "4.3.0")
 EVO = ("evo", "1.38.1")
+#: The gtsam wheel that is downloaded (any platform's wheel carries the same data files).
+GTSAM_WHEEL_PLATFORM = "manylinux_2_17_x86_64"
+GTSAM_WHEEL_PYTHON = "3.11"
 
 #: stream -> (package, version, distribution kind, path inside it, sha256 of the file)
 SOURCES = {
@@ -119,8 +122,11 @@ def download_packages(dest: Path, log=_log) -> tuple[Path, Path]:
     """pip-download the gtsam wheel and the evo sdist into ``dest``; return their paths."""
     dest.mkdir(parents=True, exist_ok=True)
     commands = [
+        # one fixed wheel, whatever the local interpreter and platform: only its data files
+        # are read, and their sha256 is checked
         [sys.executable, "-m", "pip", "download", "--no-deps", "--only-binary", ":all:",
-         "-d", str(dest), f"{GTSAM[0]}=={GTSAM[1]}"],
+         "--platform", GTSAM_WHEEL_PLATFORM, "--python-version", GTSAM_WHEEL_PYTHON,
+         "--implementation", "cp", "-d", str(dest), f"{GTSAM[0]}=={GTSAM[1]}"],
         [sys.executable, "-m", "pip", "download", "--no-deps", "--no-binary", ":all:",
          "-d", str(dest), f"{EVO[0]}=={EVO[1]}"],
     ]
