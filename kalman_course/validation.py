@@ -21,7 +21,7 @@ def as_vector(value, name: str, n: int | None = None) -> np.ndarray:
                          f"got shape {arr.shape}")
     if n is not None and arr.shape[0] != n:
         raise ValueError(f"{name} must have shape ({n},), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise ValueError(f"{name} must be finite, got NaN or inf")
     return arr
 
@@ -35,7 +35,7 @@ def as_matrix(value, name: str, shape: tuple[int | None, int | None] = (None, No
         raise ValueError(f"{name} must be a 2-D matrix of shape {expected}, got shape {arr.shape}")
     if (rows is not None and arr.shape[0] != rows) or (cols is not None and arr.shape[1] != cols):
         raise ValueError(f"{name} must have shape {expected}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise ValueError(f"{name} must be finite, got NaN or inf")
     return arr
 
@@ -66,13 +66,13 @@ def as_covariance(value, name: str, n: int | None = None, *, positive_definite: 
         raise ValueError(f"{name} must be a square covariance matrix, got shape {arr.shape}")
     if n is not None and arr.shape != (n, n):
         raise ValueError(f"{name} must have shape ({n}, {n}), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise ValueError(f"{name} must be finite, got NaN or inf")
-    asym = np.max(np.abs(arr - arr.T)) if arr.size else 0.0
-    scale = max(np.max(np.abs(arr)) if arr.size else 0.0, 1e-300)
+    asym = np.abs(arr - arr.T).max() if arr.size else 0.0
+    scale = max(np.abs(arr).max() if arr.size else 0.0, 1e-300)
     if asym > SYMMETRY_RTOL * scale:
         raise ValueError(f"{name} must be symmetric, max |{name} - {name}.T| = {asym:.3g}")
-    if np.any(np.diag(arr) < 0):
+    if (arr.diagonal() < 0).any():
         raise ValueError(f"{name} must have a non-negative diagonal (variances), got {np.diag(arr)}")
     if positive_definite:
         try:
@@ -85,4 +85,7 @@ def as_covariance(value, name: str, n: int | None = None, *, positive_definite: 
 
 def symmetrise(P: np.ndarray) -> np.ndarray:
     """Return (P + Pᵀ)/2: removes the round-off asymmetry a covariance update leaves."""
-    return 0.5 * (P + P.T)
+    S = P.T.copy()
+    S += P
+    S *= 0.5
+    return S
