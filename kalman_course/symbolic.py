@@ -251,6 +251,84 @@ class Derivation:
         """Labels of all equations, in order."""
         return [e.label for e in self.equations]
 
+    def evaluate(self, result: str, **values):
+        """Evaluate a named result numerically.
+
+        Parameters
+        ----------
+        result : str
+            A key of :attr:`results`, for example ``"K"``.
+        **values : array_like or float
+            A value for every symbol the result depends on, keyed as in :attr:`symbols`
+            (for example ``P_check=..., G=..., R=...``). Matrix symbols take arrays
+            (a 1-D array for a column vector); their sizes fix the dimension symbols.
+
+        Returns
+        -------
+        ndarray or float
+            The result as a float array (1-D for a column vector) or a float.
+
+        Raises
+        ------
+        KeyError
+            Unknown result or symbol name.
+        ValueError
+            Inconsistent sizes, or a value missing for a symbol the result needs.
+        """
+        if result not in self.results:
+            raise KeyError(f"derivation {self.name!r} has no result {result!r}; "
+                           f"results: {sorted(self.results)}")
+        expr = self.results[result]
+        # a column vector in matrix symbols (shape (n, 1)) comes back 1-D
+        is_vector = (isinstance(expr, MatrixExpr) and not isinstance(expr, sp.MatrixBase)
+                     and expr.shape[1] == 1)
+        dims: dict = {}
+        matrices: dict = {}
+        scalars: dict = {}
+        for key, value in values.items():
+            if key not in self.symbols:
+                raise KeyError(f"derivation {self.name!r} has no symbol {key!r}; "
+                               f"symbols: {sorted(self.symbols)}")
+            sym = self.symbols[key]
+            if isinstance(sym, MatrixSymbol):
+                arr = np.asarray(value, dtype=float)
+                if arr.ndim == 1 and sym.shape[1] == 1:
+                    arr = arr[:, None]
+                if arr.ndim != 2:
+                    raise ValueError(f"{key} must be a matrix of shape {sym.shape}, got shape {arr.shape}")
+                for dim, size in zip(sym.shape, arr.shape):
+                    if isinstance(dim, sp.Symbol):
+                        if dims.setdefault(dim, size) != size:
+                            raise ValueError(f"{key} has size {size} along {dim}, but another "
+                                             f"argument fixed {dim} = {dims[dim]}")
+                    elif int(dim) != size:
+                        raise ValueError(f"{key} must have shape {sym.shape}, got {arr.shape}")
+                matrices[sym] = arr
+            else:
+                scalars[sym] = float(value)
+        expr = expr.subs(dims) if dims else expr
+        args = [sym.subs(dims) for sym in matrices] + list(scalars)
+        if hasattr(expr, "atoms"):
+            given = set(args)
+            missing = sorted(str(a) for a in expr.atoms(MatrixSymbol) if a not in given)
+            missing += sorted(str(a) for a in expr.free_symbols
+                              if not isinstance(a, MatrixSymbol) and a not in given
+                              and not any(a in b.free_symbols for b in given))
+            if missing:
+                raise ValueError(f"values missing for {missing} to evaluate {result!r}")
+        # plain identifiers for lambdify (names such as \\check{P} are not valid Python)
+        plain = [MatrixSymbol(f"_m{i}", *a.shape) if isinstance(a, MatrixSymbol) else sp.Symbol(f"_s{i}")
+                 for i, a in enumerate(args)]
+        expr = expr.xreplace(dict(zip(args, plain)))
+        if isinstance(expr, MatrixExpr) and not isinstance(expr, sp.MatrixBase):
+            expr = sp.block_collapse(expr)
+        fn = sp.lambdify(plain, expr, modules="numpy")
+        out = fn(*matrices.values(), *scalars.values())
+        if isinstance(expr, (MatrixExpr, sp.MatrixBase)):
+            out = np.asarray(out, dtype=float).reshape(expr.shape)
+            return out[:, 0] if is_vector else out
+        return float(out)
+
     def check(self) -> dict[str, bool]:
         """Prove every identity and check; return ``{label: holds}`` in order."""
         return {e.label: e.holds() for e in self.equations if e.checked}
@@ -488,7 +566,7 @@ def linear_map_moments() -> Derivation:
         model=(r"$x \sim \mathcal{N}(\mu_x, \Sigma_{xx})$ and $n \sim \mathcal{N}(0, R)$ are "
                r"independent, $y = G x + n$."),
         equations=tuple(equations),
-        symbols={"n": n, "m": m},
+        symbols={"n": n, "m": m, "mu_x": mu_x, "Sigma_xx": Sxx, "G": G, "R": R},
         results={"mu_y": G * mu_x, "Sigma_yy": G * Sxx * G.T + R, "Sigma_xy": Sxx * G.T},
     )
 
@@ -568,8 +646,9 @@ def gaussian_conditioning() -> Derivation:
                r"$p(x, y) = p(x \mid y)\, p(y)$, splitting the exponent and the determinant "
                r"identifies $p(x \mid y)$."),
         equations=tuple(equations),
-        symbols={"n": n, "m": m},
-        results={"mean": mu_cond, "cov": S_cond},
+        symbols={"n": n, "m": m, "mu_x": mu_x, "mu_y": mu_y, "Sigma_xx": Sxx, "Sigma_xy": Sxy,
+                 "Sigma_yy": Syy, "y": y},
+        results={"mean": mu_cond, "cov": Sxx - Sxy * Syy.I * Sxy.T},
     )
 
 
@@ -650,7 +729,7 @@ def kalman_gain() -> Derivation:
                r"$\hat{x} = \check{x} + K (y - G \check{x})$ with a gain $K$ to be chosen "
                r"so that $\operatorname{tr} \hat{P}$, the expected squared error, is smallest."),
         equations=tuple(equations),
-        symbols={"n": n, "m": m},
+        symbols={"n": n, "m": m, "P_check": P, "G": G, "R": R, "K": K},
         results={"P_hat": P_hat, "S": S, "K": K_opt},
     )
 
@@ -730,7 +809,8 @@ def kf_update_conditioning() -> Derivation:
                r"posterior is $p(x \mid y)$ of the joint Gaussian of $[x; y]$ (in the explicit "
                r"checks $C = I$)."),
         equations=tuple(equations),
-        symbols={"n": n, "m": m, "l": l},
+        symbols={"n": n, "m": m, "l": l, "x_check": x_check, "P_check": P, "G": G, "C": C,
+                 "R": R, "y": y},
         results={"S": S, "K": K, "x_hat": x_hat, "P_hat": P_hat},
     )
 
