@@ -453,6 +453,7 @@ def plot_belief_sequence(beliefs, *, titles=None, true_cells=None, doors=None, f
     matplotlib.figure.Figure
     """
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
     beliefs = [_vector(b, f"beliefs[{i}]") for i, b in enumerate(beliefs)]
     if not beliefs:
@@ -487,6 +488,7 @@ def plot_belief_sequence(beliefs, *, titles=None, true_cells=None, doors=None, f
         ax.set_ylabel("p")
     axes[0].legend(loc="upper right", fontsize=8)
     axes[-1].set_xlabel("cell")
+    axes[-1].xaxis.set_major_locator(MaxNLocator(integer=True))
     fig.tight_layout()
     return fig
 
