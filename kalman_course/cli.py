@@ -22,11 +22,27 @@ def _cmd_execute(args: argparse.Namespace) -> int:
     if not paths:
         print("error: no notebooks found in " + " ".join(args.paths), file=sys.stderr)
         return 2
+    from nbclient.exceptions import CellExecutionError
+
+    failed = []
     for i, path in enumerate(paths, 1):
         print(f"[{i}/{len(paths)}] executing {path} ...", flush=True)
-        elapsed = execute_notebook(path, timeout=args.timeout)
+        try:
+            elapsed = execute_notebook(path, timeout=args.timeout)
+        except CellExecutionError as exc:
+            last = [line for line in str(exc).strip().splitlines() if line.strip()][-1]
+            print(f"        FAILED, file left unchanged: {grading_summary(last)}", flush=True)
+            failed.append(path)
+            continue
         print(f"        done in {elapsed:.1f} s", flush=True)
-    return 0
+    return 1 if failed else 0
+
+
+def grading_summary(line: str) -> str:
+    """Strip terminal colour codes from an error line."""
+    import re
+
+    return re.sub(r"\x1b\[[0-9;]*[A-Za-z]", "", line)
 
 
 def _cmd_build(args: argparse.Namespace) -> int:

@@ -16,6 +16,13 @@ from kalman_course.checks.gaussians import (
     check_conditional_mean as conditional_mean,
     check_linear_map_moments as linear_map_moments,
 )
+from kalman_course.checks.kf import (
+    check_cv_process_noise as cv_process_noise,
+    check_gnss_kf_run as gnss_kf_run,
+    check_kf_gain as kf_gain,
+    check_kf_predict as kf_predict,
+    check_kf_update as kf_update,
+)
 
 __all__ = [
     "CheckFailed", "SUCCESS",
@@ -23,4 +30,6 @@ __all__ = [
     "door_likelihood", "histogram_update", "histogram_predict", "histogram_filter",
     # chapter 02
     "conditional_mean", "conditional_covariance", "linear_map_moments",
+    # chapter 03
+    "cv_process_noise", "kf_predict", "kf_gain", "kf_update", "gnss_kf_run",
 ]
