@@ -237,13 +237,12 @@ def grade_notebook(path: str | Path, release: dict, *, timeout: float = 120.0) -
     return result
 
 
-def format_table(results: list[NotebookResult], width: int = 100) -> str:
+def format_table(results: list[NotebookResult]) -> str:
     """Return the points table printed by ``kalman-course grade``."""
     rows = [("chapter", "notebook", "points", "status", "first hint")]
     for r in results:
         hint = r.hint.splitlines()[0] if r.hint else ""
-        if len(hint) > width:
-            hint = hint[: width - 3] + "..."
+        hint = hint.removeprefix("CheckFailed: ")
         rows.append((r.chapter or "?", Path(r.path).name, f"{r.points}/{r.possible}", r.status, hint))
     widths = [max(len(row[i]) for row in rows) for i in range(4)]
     lines = ["  ".join(cell.ljust(w) for cell, w in zip(row[:4], widths)) + "  " + row[4] for row in rows]
