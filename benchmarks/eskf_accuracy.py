@@ -1,0 +1,224 @@
+"""Accuracy, consistency and speed of the reference ESKF on KITTI sequence 00.
+
+Run ``python benchmarks/eskf_accuracy.py`` (about half a minute). It prints Markdown:
+
+1. the noise settings used (the shipped ``kitti_lidar`` / ``kitti_gnss`` configurations);
+2. for each excerpt (cruise, turns, stop_go), means over five lidar-noise seeds (the
+   shipped draw plus :func:`kalman_course.data.simulate_lidar_poses` with four more seeds):
+   position APE (RMSE), attitude APE (RMS angle), 1 s RPE (translation and rotation) and
+   mean 6-dof pose NEES against the ground truth, for the raw lidar poses (no filter),
+   IMU dead reckoning, the reference ESKF (random-walk bias, exact reset), the constant-bias
+   model, the reset Jacobian off, and ORB-SLAM2 / S-PTAM on the same frames (SE(3)-aligned
+   per excerpt); then the ratios to the raw lidar poses against the acceptance bars;
+3. the GNSS variant (1 Hz, σ = 1 m): fused position RMSE (at the 10 Hz truth times) vs the
+   raw fixes, and a 30 s GNSS outage in the turns excerpt (peak error over the seeds);
+4. all of sequence 00: ATE (SE(3)-aligned cam0 positions, as for the SLAM anchors) with
+   lidar and with GNSS, with and without the interpolated-IMU flags;
+5. the run time of the whole sequence with lidar, median of 5.
+
+Every filter starts from the true state at the first IMU sample after the first truth pose.
+"""
+
+from __future__ import annotations
+
+import statistics
+import sys
+import time
+import types
+
+import numpy as np
+
+from kalman_course import eskf
+from kalman_course.data import load_kitti, simulate_gnss, simulate_lidar_poses
+from kalman_course.eskf_config import load_config
+from kalman_course.trajectory import ate_rmse, umeyama
+
+EXCERPTS = ("cruise", "turns", "stop_go")
+EXTRA_SEEDS = (101, 202, 303, 404)
+OUTAGE = (325.0, 355.0)            # tau, s: 30 s without GNSS inside the turns excerpt
+BARS = {"ape_position": 0.4, "ape_attitude_deg": 0.3, "rpe_position": 0.4, "rpe_attitude_deg": 0.4}
+METRICS = ("ape_position", "ape_attitude_deg", "rpe_position", "rpe_attitude_deg", "nees_pose")
+
+
+def _lidar_draws(ex):
+    yield ex.lidar
+    for seed in EXTRA_SEEDS:
+        yield simulate_lidar_poses(ex.truth, seed, ex.lidar.sigma_position, ex.lidar.sigma_attitude_deg)
+
+
+def _gnss_draws(ex):
+    yield ex.gnss
+    for seed in EXTRA_SEEDS:
+        yield simulate_gnss(ex.gnss, seed, ex.gnss.sigma)
+
+
+def _noisy(gnss, drop=None):
+    keep = np.ones(len(gnss.t), dtype=bool)
+    if drop is not None:
+        keep = (gnss.t < drop[0]) | (gnss.t > drop[1])
+    return types.SimpleNamespace(t=gnss.t[keep], position=gnss.position_noisy[keep])
+
+
+def _aligned(track, truth):
+    """SE(3)-align a SLAM track to the truth on the excerpt's frames (positions and attitudes)."""
+    R, t, _ = umeyama(track.position, truth.position)
+    return track.position @ R.T + t, R @ track.rotation
+
+
+def excerpt_rows(name: str, cfg) -> tuple[dict, dict]:
+    """Mean metrics per method over the seeds, the reference's mean ratios to the raw poses, and
+    each variant's largest position difference from the reference (m)."""
+    ex = load_kitti(name)
+    k0, s0 = ex.initial_state()
+    variants = {
+        "ESKF (random-walk bias, exact reset)": cfg,
+        "ESKF, constant bias": cfg.replace(bias_model="constant"),
+        "ESKF, reset Jacobian off": cfg.replace(exact_reset=False),
+    }
+    sums: dict[str, list[dict]] = {k: [] for k in ["raw lidar poses (no filter)", *variants]}
+    ratios = []
+    diffs = {label: 0.0 for label in variants}
+    for lidar in _lidar_draws(ex):
+        res0 = None
+        for label, c in variants.items():
+            res = eskf.run(ex.imu, s0, c, ex.gravity, lidar=lidar, start=k0)
+            m = eskf.evaluate(res.t, res.position, res.rotation, ex.truth, res.P)
+            sums[label].append(m)
+            res0 = res0 or res
+            diffs[label] = max(diffs[label], float(np.abs(res.position - res0.position).max()))
+        sel = np.isin(lidar.t, res0.t)
+        raw = eskf.evaluate(lidar.t[sel], lidar.position[sel], lidar.rotation[sel], ex.truth)
+        sums["raw lidar poses (no filter)"].append(raw)
+        ref = sums["ESKF (random-walk bias, exact reset)"][-1]
+        ratios.append({k: ref[k] / raw[k] for k in BARS})
+    # deterministic methods on the same frames
+    res0_t = eskf.run(ex.imu, s0, cfg, ex.gravity, lidar=ex.lidar, start=k0).t
+    dr = eskf.run(ex.imu, s0, cfg, ex.gravity, start=k0, output_times=res0_t)
+    sums["IMU dead reckoning"] = [eskf.evaluate(dr.t, dr.position, dr.rotation, ex.truth)]
+    sel = np.isin(ex.truth.t, res0_t)
+    for track in (ex.orb_slam2, ex.sptam):
+        p, R = _aligned(track, ex.truth)
+        sums[f"{track.name} (SE(3)-aligned)"] = [eskf.evaluate(ex.truth.t[sel], p[sel], R[sel], ex.truth)]
+    means = {label: {k: float(np.mean([m[k] for m in ms])) for k in METRICS} for label, ms in sums.items()}
+    return means, {k: float(np.mean([r[k] for r in ratios])) for k in BARS}, diffs
+
+
+def gnss_rows(name: str, cfg, outage=None) -> tuple[float, float, float, float]:
+    """Mean fused RMSE at the truth times, mean raw-fix RMSE, and in the outage the peak error
+    over the seeds with the filter's own position σ (sqrt of trace of the δp block) there."""
+    ex = load_kitti(name)
+    k0, s0 = ex.initial_state()
+    fused, raw, peak, sigma = [], [], 0.0, 0.0
+    for gnss in _gnss_draws(ex):
+        obs = _noisy(gnss, outage)
+        res = eskf.run(ex.imu, s0, cfg, ex.gravity, gnss=obs, start=k0, output_times=ex.truth.t).at(ex.truth.t)
+        err = np.linalg.norm(res.position - ex.truth.position[np.isin(ex.truth.t, res.t)], axis=1)
+        fused.append(np.sqrt(np.mean(err ** 2)))
+        inside = (gnss.t >= ex.truth.t[0]) & (gnss.t <= ex.truth.t[-1])
+        tru = ex.truth.interpolate(gnss.t[inside]).position
+        raw.append(np.sqrt(np.mean(np.sum((gnss.position_noisy[inside] - tru) ** 2, axis=1))))
+        if outage is not None:
+            w = np.nonzero((res.t >= outage[0]) & (res.t <= outage[1] + 1.0))[0]
+            i = w[np.argmax(err[w])]
+            if err[i] > peak:
+                peak, sigma = float(err[i]), float(np.sqrt(np.trace(res.P[i][:3, :3])))
+    return float(np.mean(fused)), float(np.mean(raw)), peak, sigma
+
+
+def seq00_rows(cfg_lidar, cfg_gnss) -> list[tuple[str, float]]:
+    ex = load_kitti("seq00")
+    k0, s0 = ex.initial_state()
+    cam = ex.frames.cam0_position
+    rows = []
+
+    def ate(res):
+        res = res.at(ex.truth.t)
+        k = np.searchsorted(ex.truth.t, res.t - 1e-6)
+        return ate_rmse(cam(res.position, res.rotation), cam(ex.truth.position[k], ex.truth.rotation[k]))
+
+    for flags in (True, False):
+        res = eskf.run(ex.imu, s0, cfg_lidar, ex.gravity, lidar=ex.lidar, start=k0,
+                       use_interpolation_flags=flags)
+        rows.append((f"ESKF + lidar, interpolation flags {'on' if flags else 'off'}", ate(res)))
+    for flags in (True, False):
+        res = eskf.run(ex.imu, s0, cfg_gnss, ex.gravity, gnss=_noisy(ex.gnss), start=k0,
+                       output_times=ex.truth.t, use_interpolation_flags=flags)
+        rows.append((f"ESKF + GNSS, interpolation flags {'on' if flags else 'off'}", ate(res)))
+    cam_truth = cam(ex.truth.position, ex.truth.rotation)
+    rows.append(("raw lidar poses", ate_rmse(cam(ex.lidar.position, ex.lidar.rotation), cam_truth)))
+    for track in (ex.orb_slam2, ex.sptam):
+        rows.append((track.name, ate_rmse(cam(track.position, track.rotation), cam_truth)))
+    return rows
+
+
+def speed(cfg, repeats: int = 5) -> list[float]:
+    ex = load_kitti("seq00")
+    k0, s0 = ex.initial_state()
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        eskf.run(ex.imu, s0, cfg, ex.gravity, lidar=ex.lidar, start=k0)
+        times.append(time.perf_counter() - t)
+    return times
+
+
+def main() -> int:
+    t_start = time.perf_counter()
+    cfg = load_config("kitti_lidar")
+    cfg_g = load_config("kitti_gnss")
+    print("# ESKF on KITTI sequence 00: accuracy, consistency, speed\n")
+    print(cfg.describe())
+    print(f"\nGNSS runs use `{cfg_g.name}` (same numbers; GNSS σ = {cfg_g.gnss_std:.1f} m). "
+          f"Seeds: the shipped draw plus {', '.join(map(str, EXTRA_SEEDS))}.\n")
+
+    ok = True
+    for name in EXCERPTS:
+        means, ratios, diffs = excerpt_rows(name, cfg)
+        print(f"## {name}: lidar poses at 10 Hz (σ 0.2 m, 0.3°), mean over {1 + len(EXTRA_SEEDS)} seeds\n")
+        print("| method | position APE (m) | attitude APE (°) | RPE 1 s (m) | RPE 1 s (°) | pose NEES |")
+        print("|---|---|---|---|---|---|")
+        for label, m in means.items():
+            nees = "–" if np.isnan(m["nees_pose"]) else f"{m['nees_pose']:.2f}"
+            print(f"| {label} | {m['ape_position']:.3f} | {m['ape_attitude_deg']:.3f} | "
+                  f"{m['rpe_position']:.3f} | {m['rpe_attitude_deg']:.3f} | {nees} |")
+        nees = means["ESKF (random-walk bias, exact reset)"]["nees_pose"]
+        passed = all(ratios[k] <= BARS[k] for k in BARS) and 3.0 <= nees <= 12.0
+        ok &= passed
+        print("\nreference / raw: " + ", ".join(f"{k} {ratios[k]:.3f} (≤ {BARS[k]})" for k in BARS)
+              + f"; NEES {nees:.2f} (3–12): {'PASS' if passed else 'FAIL'}")
+        print("largest position difference from the reference: "
+              + ", ".join(f"{k.split(', ')[-1]} {v * 1e3:.3f} mm" for k, v in list(diffs.items())[1:]) + "\n")
+
+    print("## GNSS variant (1 Hz, σ = 1 m), mean over 5 seeds\n")
+    print("| excerpt | fused position RMSE (m) | raw GNSS RMSE (m) | ratio (≤ 0.7) |")
+    print("|---|---|---|---|")
+    for name in EXCERPTS:
+        fused, raw, _, _ = gnss_rows(name, cfg_g)
+        ok &= fused <= 0.7 * raw
+        print(f"| {name} | {fused:.3f} | {raw:.3f} | {fused / raw:.3f} |")
+    fused, raw, peak, sigma = gnss_rows("turns", cfg_g, outage=OUTAGE)
+    print(f"\nturns with no GNSS for tau {OUTAGE[0]:.0f}–{OUTAGE[1]:.0f} s: peak position error over the "
+          f"seeds {peak:.2f} m, where the filter's own position σ was {sigma:.2f} m (RMSE over the "
+          f"excerpt {fused:.3f} m). Without fixes the filter dead-reckons from a GNSS-only attitude "
+          f"(about 1° of heading and 0.4° of tilt error at the outage's start).\n")
+
+    print("## Whole sequence 00 (ATE, SE(3)-aligned cam0 positions)\n")
+    print("| estimate | ATE (m) |")
+    print("|---|---|")
+    rows = seq00_rows(cfg, cfg_g)
+    for label, value in rows:
+        print(f"| {label} | {value:.3f} |")
+    ok &= rows[0][1] <= 0.2 and rows[2][1] <= 1.5
+
+    times = speed(cfg)
+    med = statistics.median(times)
+    ok &= med <= 1.5
+    print(f"\nSpeed: whole sequence 00 with lidar ({len(load_kitti('seq00').imu)} IMU samples, "
+          f"10 Hz updates): median {med:.3f} s of 5 runs (≤ 1.5 s): "
+          + ", ".join(f"{t:.3f}" for t in times))
+    print(f"\nAll acceptance bars: {'PASS' if ok else 'FAIL'}  ({time.perf_counter() - t_start:.1f} s)")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
