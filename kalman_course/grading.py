@@ -173,29 +173,57 @@ def run_notebook(nb, *, timeout: float = 120.0) -> tuple[str, list[dict], str]:
     detail : str
         What went wrong when the status is not GRADED.
     """
-    n_code = sum(c.cell_type == "code" for c in nb.cells)
+    return run_notebooks([nb], timeout=timeout)[0]
+
+
+def run_notebooks(nbs: list, *, timeout: float = 120.0, jobs: int = 1) -> list[tuple[str, list[dict], str]]:
+    """Run several notebooks, each in its own kernel, in ``jobs`` parallel pytest processes.
+
+    Sharing one pytest process between notebooks saves its start-up time; each notebook
+    still gets a fresh kernel. Returns one (status, cells, detail) per notebook, as
+    :func:`run_notebook` does.
+    """
+    jobs = max(1, min(jobs, len(nbs)))
     with tempfile.TemporaryDirectory(prefix="kalman-grade-") as tmp:
         tmp = Path(tmp)
-        target = tmp / "submission.ipynb"
-        nbformat.write(nb, target)
         (tmp / "pytest.ini").write_text("[pytest]\n", encoding="utf-8")
-        results = tmp / "results.json"
-        cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--color=no",
-               "-p", "kalman_course.nbval_results", "--nbval-lax", "--nbval-current-env",
-               f"--nbval-cell-timeout={timeout:g}", "-c", str(tmp / "pytest.ini"),
-               "--rootdir", str(tmp), str(target)]
-        env = dict(os.environ, KALMAN_COURSE_RESULTS=str(results), MPLBACKEND="Agg")
-        proc = subprocess.Popen(cmd, cwd=tmp, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                text=True, start_new_session=True)
-        try:
-            out, _ = proc.communicate(timeout=timeout * max(n_code, 1) + 60)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)  # the kernel is in this process group too
-            proc.communicate()
-            return TIMED_OUT, [], "the whole notebook ran out of time"
-        if not results.exists():
-            return RUN_ERROR, [], "nbval did not run: " + (out.strip().splitlines() or ["no output"])[-1]
-        cells = json.loads(results.read_text(encoding="utf-8"))
+        names = [f"submission_{i:03d}.ipynb" for i in range(len(nbs))]
+        for nb, name in zip(nbs, names):
+            nbformat.write(nb, tmp / name)
+        procs = []
+        for job in range(jobs):
+            chunk = names[job::jobs]
+            results = tmp / f"results_{job}.json"
+            cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--color=no",
+                   "-p", "kalman_course.nbval_results", "--nbval-lax", "--nbval-current-env",
+                   f"--nbval-cell-timeout={timeout:g}", "-c", str(tmp / "pytest.ini"),
+                   "--rootdir", str(tmp), *chunk]
+            env = dict(os.environ, KALMAN_COURSE_RESULTS=str(results), MPLBACKEND="Agg")
+            proc = subprocess.Popen(cmd, cwd=tmp, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                    text=True, start_new_session=True)
+            n_code = sum(c.cell_type == "code" for i in range(job, len(nbs), jobs) for c in nbs[i].cells)
+            procs.append((proc, chunk, results, time.monotonic() + timeout * max(n_code, 1) + 60))
+        outcome: dict[str, tuple[str, list[dict], str]] = {}
+        for proc, chunk, results, deadline in procs:
+            try:
+                out, _ = proc.communicate(timeout=max(deadline - time.monotonic(), 1))
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)  # the kernels are in this process group too
+                proc.communicate()
+                outcome.update({name: (TIMED_OUT, [], "the whole notebook ran out of time") for name in chunk})
+                continue
+            if not results.exists():
+                detail = "nbval did not run: " + (out.strip().splitlines() or ["no output"])[-1]
+                outcome.update({name: (RUN_ERROR, [], detail) for name in chunk})
+                continue
+            cells = json.loads(results.read_text(encoding="utf-8"))
+            for name in chunk:
+                outcome[name] = _notebook_status([c for c in cells if c["file"] == name], timeout)
+    return [outcome[name] for name in names]
+
+
+def _notebook_status(cells: list[dict], timeout: float) -> tuple[str, list[dict], str]:
+    """Tell from nbval's cell reports whether the notebook ran to the end."""
     messages = " ".join(c["message"] for c in cells)
     if "Timeout of" in messages:
         return TIMED_OUT, cells, f"a cell ran longer than {timeout:g} s"

@@ -2,7 +2,7 @@
 
 ``kalman-course grade`` runs ``pytest -p kalman_course.nbval_results --nbval-lax ...`` in
 a subprocess with ``KALMAN_COURSE_RESULTS`` naming the output file. Each entry holds the
-cell id, its index among code cells, whether it passed and, if not, nbval's report.
+notebook's file name, the cell id, its index among code cells, whether it passed and, if not, nbval's report.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ def pytest_runtest_makereport(item, call):
     if cell is None or report.when == "teardown" or (report.when == "setup" and report.passed):
         return
     _results.append({
+        "file": item.path.name,
         "cell_id": cell.get("id"),
         "index": item.cell_num,
         "passed": report.passed,

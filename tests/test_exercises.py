@@ -28,34 +28,63 @@ def _graders(nb) -> dict[str, str]:
     return {info[0]: cell["id"] for cell in nb.cells if (info := authoring.grader_info(cell))}
 
 
-def _outcomes(nb) -> dict[str, bool]:
-    status, cells, detail = grading.run_notebook(nb, timeout=120)
-    assert status == grading.GRADED, detail
-    return {c["cell_id"]: c["passed"] for c in cells}
-
-
-@pytest.mark.parametrize("path", SOLUTIONS, ids=lambda p: p.stem)
-def test_solution_passes_every_grader(path):
+def _variant(kind: str, path, stub=None):
+    """The notebook a test runs: the solution, the released exercise, or one stub alone."""
+    if kind == "exercise":
+        return nbformat.read(ROOT / "exercises" / path.name, as_version=4)
     nb = nbformat.read(path, as_version=4)
-    outcomes = _outcomes(nb)
-    for check, cid in _graders(nb).items():
-        assert outcomes.get(cid) is True, f"the solution fails grader {check}"
+    return authoring.render(nb, {stub.stub_id}) if kind == "stub" else nb
+
+
+_KINDS = {"test_solution_passes_every_grader": "solution", "test_exercise_fails_every_grader": "exercise",
+          "test_each_stub_alone_fails_its_grader": "stub"}
+
+
+@pytest.fixture(scope="module")
+def outcomes(request):
+    """Run every notebook the selected tests need at once: two pytest processes, a kernel each.
+
+    Returns {(kind, file name, stub id or None): {cell id: passed}}.
+    """
+    wanted = {}
+    for item in request.session.items:
+        kind = _KINDS.get(getattr(item, "originalname", None))
+        if kind and hasattr(item, "callspec"):
+            path, stub = item.callspec.params["path"], item.callspec.params.get("stub")
+            wanted[(kind, path.name, stub.stub_id if stub else None)] = (kind, path, stub)
+    keys = list(wanted)
+    runs = grading.run_notebooks([_variant(*wanted[k]) for k in keys], timeout=120, jobs=2)
+    result = {}
+    for key, (status, cells, detail) in zip(keys, runs):
+        result[key] = (status, detail, {c["cell_id"]: c["passed"] for c in cells})
+    return result
+
+
+def _outcome(outcomes, key) -> dict[str, bool]:
+    status, detail, cells = outcomes[key]
+    assert status == grading.GRADED, detail
+    return cells
 
 
 @pytest.mark.parametrize("path", SOLUTIONS, ids=lambda p: p.stem)
-def test_exercise_fails_every_grader(path):
-    nb = nbformat.read(ROOT / "exercises" / path.name, as_version=4)
-    outcomes = _outcomes(nb)
-    for check, cid in _graders(nb).items():
-        assert outcomes.get(cid) is False, f"grader {check} passes on the untouched exercise"
+def test_solution_passes_every_grader(outcomes, path):
+    cells = _outcome(outcomes, ("solution", path.name, None))
+    for check, cid in _graders(nbformat.read(path, as_version=4)).items():
+        assert cells.get(cid) is True, f"the solution fails grader {check}"
+
+
+@pytest.mark.parametrize("path", SOLUTIONS, ids=lambda p: p.stem)
+def test_exercise_fails_every_grader(outcomes, path):
+    cells = _outcome(outcomes, ("exercise", path.name, None))
+    for check, cid in _graders(nbformat.read(ROOT / "exercises" / path.name, as_version=4)).items():
+        assert cells.get(cid) is False, f"grader {check} passes on the untouched exercise"
 
 
 @pytest.mark.parametrize("path, stub", STUBS, ids=[f"{p.stem}-{s.check}-{s.stub_id}" for p, s in STUBS])
-def test_each_stub_alone_fails_its_grader(path, stub):
-    nb = nbformat.read(path, as_version=4)
-    outcomes = _outcomes(authoring.render(nb, {stub.stub_id}))
-    assert outcomes.get(_graders(nb)[stub.check]) is False, \
-        f"stub {stub.stub_id} ({stub.stub.strip()!r}) does not fail grader {stub.check}"
+def test_each_stub_alone_fails_its_grader(outcomes, path, stub):
+    cells = _outcome(outcomes, ("stub", path.name, stub.stub_id))
+    cid = _graders(nbformat.read(path, as_version=4))[stub.check]
+    assert cells.get(cid) is False, f"stub {stub.stub_id} ({stub.stub.strip()!r}) does not fail grader {stub.check}"
 
 
 def test_grade_restores_a_tampered_grader_and_never_writes_the_submission(tmp_path, capsys):
