@@ -1045,3 +1045,416 @@ def cv_observation_matrix(dim: int = 1) -> np.ndarray:
     """
     dim = _check_dim(dim)
     return np.hstack([np.eye(dim), np.zeros((dim, dim))])
+
+
+# ======================================================================================
+# Chapters 04–05: planar motion models (CV, CA, CTRV, CTRA) and the radar observation
+# ======================================================================================
+#
+# Each model is written once as a continuous-time ODE. SymPy integrates it over a step T
+# (with the process noise held constant over the step), gives the exact discrete model
+# x_k = f(x_{k-1}, w_k, T), and differentiates it for the motion Jacobian F = ∂f/∂x and
+# the process-noise Jacobian B = ∂f/∂w (both at w = 0). The turning models divide by the
+# yaw rate ω; for |ω T| below ``OMEGA_SERIES_THRESHOLD`` the numeric functions switch to a
+# Taylor series in ω, derived symbolically from the same integrand, so the model and its
+# Jacobians stay finite and continuous through ω = 0.
+#
+# State orders (units m, m/s, m/s², rad, rad/s):
+#   cv   [p_x, p_y, v_x, v_y]            noise w = [a_x, a_y]        (m/s²)
+#   ca   [p_x, p_y, v_x, v_y, a_x, a_y]  noise w = [j_x, j_y]        (m/s³)
+#   ctrv [p_x, p_y, v, ψ, ω]             noise w = [ν_a, ν_ψ̈]        (m/s², rad/s²)
+#   ctra [p_x, p_y, v, ψ, ω, a]          noise w = [ν_j, ν_ψ̈]        (m/s³, rad/s²)
+# The CTRV order and noise are those of ``kalman_course.data.ctrv_step``.
+
+from kalman_course.validation import as_vector  # noqa: E402  (below symbolic in the layering)
+
+#: The planar motion models, in the order the course introduces them.
+MOTION_MODELS = ("cv", "ca", "ctrv", "ctra")
+
+#: Below this |ω T| (rad) the turning models use their Taylor series in ω.
+OMEGA_SERIES_THRESHOLD = 0.02
+
+#: Order of that series: terms up to ω^(SERIES_ORDER − 1) are kept. At the threshold the
+#: first dropped term is below 1e-15 of the step's displacement.
+SERIES_ORDER = 8
+
+
+def _motion_symbols():
+    """The shared symbols of the planar models (one set, so the models compose)."""
+    T, t = sp.symbols("T t", nonnegative=True)
+    px, py, vx, vy, ax, ay, v, a, psi, om = sp.symbols(
+        r"p_x p_y v_x v_y a_x a_y v a psi omega", real=True)
+    jx, jy, nu_a, nu_yaw, nu_j = sp.symbols(r"j_x j_y nu_a nu_psiddot nu_j", real=True)
+    return types.SimpleNamespace(T=T, t=t, px=px, py=py, vx=vx, vy=vy, ax=ax, ay=ay, v=v, a=a,
+                                 psi=psi, om=om, jx=jx, jy=jy, nu_a=nu_a, nu_yaw=nu_yaw, nu_j=nu_j)
+
+
+def _turn_integrals(s, speed, order=None):
+    """∫₀ᵀ speed(t) (cos ψ(t), sin ψ(t)) dt with ψ(t) = ψ + ω t.
+
+    With ``order`` None SymPy integrates in closed form (ω ≠ 0); otherwise the integrand's
+    Taylor polynomial in ω, cos(ψ + ω t) = Σ (ω t)^k / k! · cos(ψ + k π/2), is integrated
+    term by term (exact to that order, and finite at ω = 0).
+    """
+    t, T, om, psi = s.t, s.T, s.om, s.psi
+    if order is None:
+        nonzero = sp.Symbol("w_nz", real=True, nonzero=True)  # ω ≠ 0 for the closed form
+        cx = sp.integrate(speed * sp.cos(psi + nonzero * t), (t, 0, T)).subs(nonzero, om)
+        cy = sp.integrate(speed * sp.sin(psi + nonzero * t), (t, 0, T)).subs(nonzero, om)
+        return cx, cy
+    cos_terms = sum((om * t) ** k / sp.factorial(k) * sp.cos(psi + k * sp.pi / 2) for k in range(order))
+    sin_terms = sum((om * t) ** k / sp.factorial(k) * sp.sin(psi + k * sp.pi / 2) for k in range(order))
+    cx = sp.integrate(sp.expand(speed * cos_terms), (t, 0, T))
+    cy = sp.integrate(sp.expand(speed * sin_terms), (t, 0, T))
+    return sp.expand(cx), sp.expand(cy)
+
+
+def _model_parts(name: str) -> dict:
+    """Symbols, continuous dynamics and exact (and series) discrete model of one planar model."""
+    s = _motion_symbols()
+    T = s.T
+    h2, h3 = T**2 / 2, T**3 / 6
+    if name == "cv":
+        x = [s.px, s.py, s.vx, s.vy]
+        w = [s.ax, s.ay]
+        dyn = sp.Matrix([s.vx, s.vy, 0, 0])
+        f0 = sp.Matrix([s.px + s.vx * T, s.py + s.vy * T, s.vx, s.vy])
+        noise = sp.Matrix([h2 * s.ax, h2 * s.ay, T * s.ax, T * s.ay])
+        series = None
+        title = "Constant velocity (CV), planar"
+    elif name == "ca":
+        x = [s.px, s.py, s.vx, s.vy, s.ax, s.ay]
+        w = [s.jx, s.jy]
+        dyn = sp.Matrix([s.vx, s.vy, s.ax, s.ay, 0, 0])
+        f0 = sp.Matrix([s.px + s.vx * T + s.ax * h2, s.py + s.vy * T + s.ay * h2,
+                        s.vx + s.ax * T, s.vy + s.ay * T, s.ax, s.ay])
+        noise = sp.Matrix([h3 * s.jx, h3 * s.jy, h2 * s.jx, h2 * s.jy, T * s.jx, T * s.jy])
+        series = None
+        title = "Constant acceleration (CA), planar"
+    elif name in ("ctrv", "ctra"):
+        accel = name == "ctra"
+        x = [s.px, s.py, s.v, s.psi, s.om] + ([s.a] if accel else [])
+        w = [s.nu_j if accel else s.nu_a, s.nu_yaw]
+        speed = s.v + s.a * s.t if accel else s.v
+        dyn = sp.Matrix([s.v * sp.cos(s.psi), s.v * sp.sin(s.psi), s.a if accel else 0, s.om, 0]
+                        + ([0] if accel else []))
+        nu = w[0]
+        cx, cy = _turn_integrals(s, speed)
+        sx, sy = _turn_integrals(s, speed, SERIES_ORDER)
+        tail = [s.v + s.a * T, s.psi + s.om * T, s.om, s.a] if accel else [s.v, s.psi + s.om * T, s.om]
+        f0 = sp.Matrix([s.px + cx, s.py + cy] + tail)
+        series = sp.Matrix([s.px + sx, s.py + sy] + tail)
+        if accel:   # a jerk ν_j held over the step, along the heading
+            noise = sp.Matrix([h3 * sp.cos(s.psi) * nu, h3 * sp.sin(s.psi) * nu, h2 * nu, T * nu,
+                               h2 * s.nu_yaw, T * s.nu_yaw])
+        else:       # an acceleration ν_a held over the step, along the heading
+            noise = sp.Matrix([h2 * sp.cos(s.psi) * nu, h2 * sp.sin(s.psi) * nu, T * nu,
+                               h2 * s.nu_yaw, T * s.nu_yaw])
+        title = ("Constant turn rate and acceleration (CTRA)" if accel
+                 else "Constant turn rate and velocity (CTRV)")
+    else:
+        raise KeyError(f"unknown motion model {name!r}; known: {MOTION_MODELS}")
+    return dict(s=s, x=x, w=w, dyn=dyn, f0=f0, series=series, noise=noise, title=title)
+
+
+def _model_derivation(name: str, registry_name: str) -> Derivation:
+    parts = _model_parts(name)
+    s, x, w, dyn, f0, series, noise = (parts[k] for k in ("s", "x", "w", "dyn", "f0", "series", "noise"))
+    T = s.T
+    X, W = sp.Matrix(x), sp.Matrix(w)
+    f = f0 + noise
+    at_zero_noise = {wi: 0 for wi in w}
+    F = f.jacobian(X).subs(at_zero_noise)
+    B = f.jacobian(W).subs(at_zero_noise)
+    flow = dyn.subs(dict(zip(x, list(f0))), simultaneous=True)
+    state = r"[" + ", ".join(sp.latex(xi) for xi in x) + r"]"
+    equations = [
+        Equation("dynamics", sp.Matrix([sp.Symbol(r"\dot{" + sp.latex(xi) + "}") for xi in x]), dyn,
+                 "the continuous-time model (noise-free)", "definition"),
+        Equation("flow", sp.Derivative(sp.ImmutableMatrix(f0), T), flow,
+                 r"the discrete model $f(x, 0, T)$ solves the ODE: $\partial f / \partial T$ is the "
+                 r"dynamics evaluated at $f$ ..."),
+        Equation("initial", sp.Subs(sp.ImmutableMatrix(f0), T, 0), X,
+                 r"... and starts at the state: $f(x, 0, 0) = x$"),
+        Equation("noise_linear", f - f0, B * W,
+                 r"the noise held over the step enters linearly, $f(x, w) = f(x, 0) + B w$"),
+        Equation("motion_jacobian", sp.MatrixSymbol("F", len(x), len(x)), F,
+                 r"$F = \partial f / \partial x$ at $w = 0$, derived by SymPy", "definition"),
+        Equation("noise_jacobian", sp.MatrixSymbol("B", len(x), len(w)), B,
+                 r"$B = \partial f / \partial w$ at $w = 0$", "definition"),
+    ]
+    results = {"f": f0, "f_noisy": f, "F": F, "B": B, "dynamics": dyn}
+    if series is not None:
+        om = s.om
+        Fs = (series + noise).jacobian(X).subs(at_zero_noise)
+        straight = f0.applyfunc(lambda e: sp.Limit(e, om, 0))
+        equations += [
+            Equation("limit_straight", straight, series.subs(om, 0),
+                     r"as $\omega \to 0$ the turn becomes a straight line, and the series branch "
+                     r"at $\omega = 0$ is that limit"),
+            Equation("series", sp.Matrix([sp.Symbol(r"f_{\mathrm{series}}")]), sp.Matrix([sp.Integer(0)]),
+                     rf"for $|\omega T| < {OMEGA_SERIES_THRESHOLD}$ the numeric model uses the Taylor "
+                     rf"series of the integrand in $\omega$ up to $\omega^{{{SERIES_ORDER - 1}}}$",
+                     "definition"),
+        ]
+        results.update({"f_series": series, "F_series": Fs})
+    symbols = {str(xi): xi for xi in x} | {str(wi): wi for wi in w} | {"T": T}
+    return Derivation(
+        name=registry_name,
+        title=parts["title"],
+        model=(rf"Planar state ${state}$, noise $w = [{', '.join(sp.latex(wi) for wi in w)}]$ held "
+               r"constant over a step of $T$ seconds. The exact discrete model is the ODE's flow; "
+               r"its Jacobians are derived, never typed."),
+        equations=tuple(equations),
+        symbols=symbols,
+        results=results,
+    )
+
+
+@functools.lru_cache(maxsize=None)
+def cv_planar_model() -> Derivation:
+    """Planar constant velocity, state [p_x, p_y, v_x, v_y], noise [a_x, a_y]."""
+    return _model_derivation("cv", "cv_planar_model")
+
+
+@functools.lru_cache(maxsize=None)
+def ca_model() -> Derivation:
+    """Planar constant acceleration, state [p_x, p_y, v_x, v_y, a_x, a_y], noise [j_x, j_y]."""
+    return _model_derivation("ca", "ca_model")
+
+
+@functools.lru_cache(maxsize=None)
+def ctrv_model() -> Derivation:
+    """Constant turn rate and velocity, state [p_x, p_y, v, ψ, ω], noise [ν_a, ν_ψ̈]."""
+    return _model_derivation("ctrv", "ctrv_model")
+
+
+@functools.lru_cache(maxsize=None)
+def ctra_model() -> Derivation:
+    """Constant turn rate and acceleration, state [p_x, p_y, v, ψ, ω, a], noise [ν_j, ν_ψ̈]."""
+    return _model_derivation("ctra", "ctra_model")
+
+
+_MODEL_BUILDERS = {"cv": cv_planar_model, "ca": ca_model, "ctrv": ctrv_model, "ctra": ctra_model}
+
+
+@functools.lru_cache(maxsize=None)
+def radar_model() -> Derivation:
+    """The radar observation (range, bearing, range rate) and its Jacobian.
+
+    Written for the Cartesian state [p_x, p_y, v_x, v_y]; the CTRV/CTRA form follows by
+    substituting v_x = v cos ψ, v_y = v sin ψ.
+    """
+    px, py, vx, vy = sp.symbols("p_x p_y v_x v_y", real=True)
+    v, psi = sp.symbols("v psi", real=True)
+    rho = sp.sqrt(px**2 + py**2)
+    h = sp.Matrix([rho, sp.atan2(py, px), (px * vx + py * vy) / rho])
+    X = sp.Matrix([px, py, vx, vy])
+    G = h.jacobian(X)
+    c1 = px**2 + py**2
+    c2 = sp.sqrt(c1)
+    c3 = c1 * c2
+    # the Jacobian as the seed article writes it out by hand
+    G_hand = sp.Matrix([[px / c2, py / c2, 0, 0],
+                        [-py / c1, px / c1, 0, 0],
+                        [py * (vx * py - vy * px) / c3, px * (px * vy - py * vx) / c3, px / c2, py / c2]])
+    polar = {vx: v * sp.cos(psi), vy: v * sp.sin(psi)}
+    h_turn = h.subs(polar)
+    om, a = sp.symbols("omega a", real=True)
+    X_turn = sp.Matrix([px, py, v, psi, om])
+    G_turn = h_turn.jacobian(X_turn)
+    chain = G.subs(polar) * sp.Matrix([px, py, v * sp.cos(psi), v * sp.sin(psi)]).jacobian(X_turn)
+    equations = [
+        Equation("observation", sp.Matrix(sp.symbols(r"rho phi \dot{rho}")), h,
+                 r"range, bearing (atan2, in $(-\pi, \pi]$) and range rate, the velocity projected on "
+                 r"the line of sight", "definition"),
+        Equation("jacobian_hand", G, G_hand,
+                 "SymPy's Jacobian equals the hand-derived one of the lecture"),
+        Equation("range_rate_is_derivative", h[2], (sp.diff(rho, px) * vx + sp.diff(rho, py) * vy),
+                 r"the range rate is $d\rho/dt = \nabla \rho \cdot v$"),
+        Equation("jacobian_turn_chain", G_turn, chain,
+                 r"for the CTRV state the Jacobian is the Cartesian one times the Jacobian of "
+                 r"$(v, \psi) \mapsto (v \cos\psi, v \sin\psi)$ (chain rule)"),
+    ]
+    return Derivation(
+        name="radar_model",
+        title="Radar observation: range, bearing, range rate",
+        model=(r"A radar at the origin measures $y = h(x) + n$, $n \sim \mathcal{N}(0, R)$, of a target "
+               r"with position $(p_x, p_y)$ and velocity $(v_x, v_y)$ (for the turning models "
+               r"$v_x = v \cos\psi$, $v_y = v \sin\psi$)."),
+        equations=tuple(equations),
+        symbols={"p_x": px, "p_y": py, "v_x": vx, "v_y": vy, "v": v, "psi": psi, "omega": om, "a": a},
+        results={"h": h, "G": G, "h_turn": h_turn, "G_turn": G_turn},
+    )
+
+
+_BUILDERS = _BUILDERS + (cv_planar_model, ca_model, ctrv_model, ctra_model, radar_model)
+
+
+# --------------------------------------------------------------------------------------
+# Numeric planar models and radar, lambdified once from the expressions above
+# --------------------------------------------------------------------------------------
+
+def _lambdify(args, expr):
+    fn = sp.lambdify(args, sp.ImmutableMatrix(expr), modules="numpy", cse=True)
+    return fn
+
+
+@functools.lru_cache(maxsize=None)
+def _model_functions(name: str) -> dict:
+    d = _MODEL_BUILDERS[name]()
+    parts = _model_parts(name)
+    x, w, T = parts["x"], parts["w"], parts["s"].T
+    args = list(x) + list(w) + [T]
+    fns = {
+        "n": len(x), "m": len(w),
+        "f": _lambdify(args, d.results["f_noisy"]),
+        "F": _lambdify(list(x) + [T], d.results["F"]),
+        "B": _lambdify(list(x) + [T], d.results["B"]),
+    }
+    if "f_series" in d.results:
+        noise = d.results["f_noisy"] - d.results["f"]
+        fns["f_series"] = _lambdify(args, d.results["f_series"] + noise)
+        fns["F_series"] = _lambdify(list(x) + [T], d.results["F_series"])
+        fns["omega_index"] = x.index(parts["s"].om)
+    return fns
+
+
+def motion_state_names(model: str) -> tuple[str, ...]:
+    """Names of the state components of ``model`` ("cv", "ca", "ctrv" or "ctra"), in order."""
+    names = {"cv": ("p_x", "p_y", "v_x", "v_y"), "ca": ("p_x", "p_y", "v_x", "v_y", "a_x", "a_y"),
+             "ctrv": ("p_x", "p_y", "v", "psi", "omega"),
+             "ctra": ("p_x", "p_y", "v", "psi", "omega", "a")}
+    if model not in names:
+        raise ValueError(f"model must be one of {MOTION_MODELS}, got {model!r}")
+    return names[model]
+
+
+def _model_args(model, x, T):
+    if model not in MOTION_MODELS:
+        raise ValueError(f"model must be one of {MOTION_MODELS}, got {model!r}")
+    fns = _model_functions(model)
+    n = fns["n"]
+    if not (type(x) is np.ndarray and x.dtype == np.float64 and x.shape == (n,) and np.isfinite(x).all()):
+        x = np.asarray(x, dtype=float)
+        if x.shape != (n,):
+            raise ValueError(f"x must have shape ({n},) for the {model} model "
+                             f"{list(motion_state_names(model))}, got {x.shape}")
+        if not np.isfinite(x).all():
+            raise ValueError("x must be finite, got NaN or inf")
+    T = _check_step(T)
+    series = "omega_index" in fns and abs(x[fns["omega_index"]] * T) < OMEGA_SERIES_THRESHOLD
+    return fns, x, T, series
+
+
+def motion_step(model: str, x, T, w=None) -> np.ndarray:
+    """Propagate a planar state over one step: :math:`f(x, w, T)`.
+
+    Parameters
+    ----------
+    model : {"cv", "ca", "ctrv", "ctra"}
+    x : array_like, shape (n,)
+        State in the order of :func:`motion_state_names`.
+    T : float
+        Step, s (>= 0).
+    w : array_like, shape (2,), optional
+        Process noise held constant over the step (see the module notes); default zero.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        The exact flow of the model. The turning models use their ω-series for
+        ``|ω T| < OMEGA_SERIES_THRESHOLD``.
+    """
+    fns, x, T, series = _model_args(model, x, T)
+    w = np.zeros(fns["m"]) if w is None else as_vector(w, "w", fns["m"])
+    fn = fns["f_series"] if series else fns["f"]
+    return np.asarray(fn(*x, *w, T), dtype=float).reshape(-1)
+
+
+def motion_jacobian(model: str, x, T) -> np.ndarray:
+    """Motion Jacobian :math:`F = \\partial f / \\partial x` at (x, w = 0), shape (n, n)."""
+    fns, x, T, series = _model_args(model, x, T)
+    fn = fns["F_series"] if series else fns["F"]
+    return np.asarray(fn(*x, T), dtype=float)
+
+
+def motion_noise_jacobian(model: str, x, T) -> np.ndarray:
+    """Process-noise Jacobian :math:`B = \\partial f / \\partial w` at (x, w = 0), shape (n, 2)."""
+    fns, x, T, _ = _model_args(model, x, T)
+    return np.asarray(fns["B"](*x, T), dtype=float)
+
+
+def motion_process_noise(model: str, x, T, sigmas) -> np.ndarray:
+    """Process noise in state space, :math:`B \\, \\mathrm{diag}(\\sigma^2) \\, B^T`, shape (n, n).
+
+    ``sigmas`` are the standard deviations of the two noise components of ``model``
+    (for CTRV: σ_a in m/s² and σ_ψ̈ in rad/s²).
+    """
+    sigmas = as_vector(sigmas, "sigmas", 2)
+    B = motion_noise_jacobian(model, x, T)
+    return (B * sigmas**2) @ B.T
+
+
+def ctrv_step(x, T, w=None) -> np.ndarray:
+    """CTRV step :math:`f(x, w, T)`, state [p_x, p_y, v, ψ, ω]; see :func:`motion_step`."""
+    return motion_step("ctrv", x, T, w)
+
+
+def ctrv_jacobian(x, T) -> np.ndarray:
+    """CTRV motion Jacobian F (5, 5); see :func:`motion_jacobian`."""
+    return motion_jacobian("ctrv", x, T)
+
+
+def ctrv_noise_jacobian(x, T) -> np.ndarray:
+    """CTRV process-noise Jacobian B (5, 2) for w = [ν_a, ν_ψ̈]."""
+    return motion_noise_jacobian("ctrv", x, T)
+
+
+@functools.lru_cache(maxsize=None)
+def _radar_functions() -> dict:
+    d = radar_model()
+    sy = d.symbols
+    cart = [sy["p_x"], sy["p_y"], sy["v_x"], sy["v_y"]]
+    turn = [sy["p_x"], sy["p_y"], sy["v"], sy["psi"]]
+    G_turn = d.results["G_turn"][:, :4]       # ∂h/∂ω = 0
+    return {"h_cart": _lambdify(cart, d.results["h"]), "G_cart": _lambdify(cart, d.results["G"]),
+            "h_turn": _lambdify(turn, d.results["h_turn"]), "G_turn": _lambdify(turn, G_turn)}
+
+
+def _radar_state(x, model: str):
+    if model not in MOTION_MODELS:
+        raise ValueError(f"model must be one of {MOTION_MODELS}, got {model!r}")
+    n = len(motion_state_names(model))
+    x = as_vector(x, "x", n)
+    if np.hypot(x[0], x[1]) < 1e-9:
+        raise ValueError("x must not be at the radar's position (range 0 has no bearing)")
+    return x, n
+
+
+def radar_observation(x, model: str = "ctrv") -> np.ndarray:
+    """Radar measurement function h(x) = [ρ (m), φ (rad, in (−π, π]), ρ̇ (m/s)], shape (3,).
+
+    ``model`` names the state layout (see :func:`motion_state_names`); the radar sits at
+    the origin.
+    """
+    x, _ = _radar_state(x, model)
+    fn = _radar_functions()["h_cart" if model in ("cv", "ca") else "h_turn"]
+    return np.asarray(fn(*x[:4]), dtype=float).reshape(-1)
+
+
+def radar_jacobian(x, model: str = "ctrv") -> np.ndarray:
+    """Radar observation Jacobian G = ∂h/∂x, shape (3, n) for the state layout of ``model``."""
+    x, n = _radar_state(x, model)
+    G = np.zeros((3, n))
+    fn = _radar_functions()["G_cart" if model in ("cv", "ca") else "G_turn"]
+    G[:, :4] = np.asarray(fn(*x[:4]), dtype=float)
+    return G
+
+
+__all__ += [
+    "MOTION_MODELS", "OMEGA_SERIES_THRESHOLD", "cv_planar_model", "ca_model", "ctrv_model",
+    "ctra_model", "radar_model", "motion_state_names", "motion_step", "motion_jacobian",
+    "motion_noise_jacobian", "motion_process_noise", "ctrv_step", "ctrv_jacobian",
+    "ctrv_noise_jacobian", "radar_observation", "radar_jacobian",
+]

@@ -1,0 +1,159 @@
+"""Planar motion models and the radar observation: derived Jacobians against finite
+differences, the ω → 0 branch, and agreement with the synthetic data's own CTRV."""
+
+import numpy as np
+import pytest
+
+from kalman_course import symbolic
+from kalman_course.data import synthetic
+
+MODELS = symbolic.MOTION_MODELS
+
+
+def _random_state(model, rng, omega=None):
+    n = len(symbolic.motion_state_names(model))
+    x = rng.normal(size=n) * 3.0
+    x[:2] += rng.uniform(5, 20, size=2) * rng.choice([-1, 1], size=2)
+    if model in ("ctrv", "ctra"):
+        x[2] = rng.uniform(1, 15)
+        x[3] = rng.uniform(-np.pi, np.pi)
+        x[4] = rng.uniform(-0.8, 0.8) if omega is None else omega
+    return x
+
+
+def _numeric_jacobian(fn, x, eps=1e-6):
+    cols = []
+    for i in range(len(x)):
+        dx = np.zeros(len(x))
+        dx[i] = eps
+        cols.append((fn(x + dx) - fn(x - dx)) / (2 * eps))
+    return np.column_stack(cols)
+
+
+# omegas: generic, tiny (series branch), exactly zero, and either side of the switch
+OMEGAS = [None, 1e-9, 0.0, -3e-4]
+
+
+@pytest.mark.parametrize("model", MODELS)
+@pytest.mark.parametrize("omega", OMEGAS)
+def test_motion_jacobian_matches_finite_differences(model, omega):
+    rng = np.random.default_rng(hash((model, str(omega))) % 2**32)
+    for _ in range(5):
+        x = _random_state(model, rng, omega)
+        T = rng.uniform(0.01, 1.0)
+        F = symbolic.motion_jacobian(model, x, T)
+        # differentiate the exact closed form where it is accurate, else the model itself
+        num = _numeric_jacobian(lambda s: symbolic.motion_step(model, s, T), x, eps=1e-6)
+        np.testing.assert_allclose(F, num, rtol=1e-6, atol=1e-6)
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_noise_jacobian_matches_finite_differences(model):
+    rng = np.random.default_rng(7)
+    for omega in (None, 0.0):
+        x = _random_state(model, rng, omega)
+        T = 0.3
+        B = symbolic.motion_noise_jacobian(model, x, T)
+        num = _numeric_jacobian(lambda w: symbolic.motion_step(model, x, T, w), np.zeros(2))
+        np.testing.assert_allclose(B, num, rtol=1e-7, atol=1e-9)
+
+
+@pytest.mark.parametrize("model", ["ctrv", "ctra"])
+def test_turning_models_are_continuous_through_the_series_switch(model):
+    rng = np.random.default_rng(3)
+    x = _random_state(model, rng)
+    T = 0.5
+    w_switch = symbolic.OMEGA_SERIES_THRESHOLD / T
+    for w in (w_switch, -w_switch):
+        below, above = x.copy(), x.copy()
+        below[4], above[4] = w * (1 - 1e-9), w * (1 + 1e-9)
+        f_b, f_a = symbolic.motion_step(model, below, T), symbolic.motion_step(model, above, T)
+        np.testing.assert_allclose(f_b, f_a, rtol=0, atol=1e-10)
+        F_b, F_a = symbolic.motion_jacobian(model, below, T), symbolic.motion_jacobian(model, above, T)
+        np.testing.assert_allclose(F_b, F_a, rtol=0, atol=1e-8)
+    # at ω = 0 the model is finite and is the straight line
+    x[4] = 0.0
+    f = symbolic.motion_step(model, x, T)
+    assert np.all(np.isfinite(symbolic.motion_jacobian(model, x, T)))
+    a = x[5] if model == "ctra" else 0.0
+    dist = x[2] * T + a * T**2 / 2
+    np.testing.assert_allclose(f[:2], x[:2] + dist * np.array([np.cos(x[3]), np.sin(x[3])]), atol=1e-12)
+
+
+def test_symbolic_ctrv_agrees_with_the_synthetic_generator():
+    rng = np.random.default_rng(11)
+    # (below |ω| = 1e-6 rad/s the generator drops the turn: a sub-micrometre difference)
+    for omega, atol in ((None, 1e-9), (None, 1e-9), (0.0, 1e-12), (1e-7, 1e-6)):
+        x = _random_state("ctrv", rng, omega)
+        w = rng.normal(size=2)
+        for T in (0.05, 0.7):
+            np.testing.assert_allclose(symbolic.ctrv_step(x, T, w),
+                                       synthetic.ctrv_step(x, T, w[0], w[1]), rtol=1e-12, atol=atol)
+    sc = synthetic.ctrv_lidar_radar(0, duration=2.0)
+    for k in sc.radar_index:
+        np.testing.assert_allclose(symbolic.radar_observation(sc.x[k]), synthetic.radar_measurement(sc.x[k]),
+                                   rtol=1e-12, atol=1e-12)
+
+
+def test_ctra_with_zero_acceleration_is_ctrv():
+    rng = np.random.default_rng(5)
+    x = _random_state("ctrv", rng)
+    np.testing.assert_allclose(symbolic.motion_step("ctra", np.r_[x, 0.0], 0.4)[:5],
+                               symbolic.ctrv_step(x, 0.4), atol=1e-12)
+
+
+def test_cv_planar_matches_the_chapter_03_matrices():
+    x = np.array([1.0, 2.0, 3.0, -1.0])
+    T = 0.7
+    np.testing.assert_allclose(symbolic.motion_jacobian("cv", x, T), symbolic.cv_transition(T, 2))
+    B = symbolic.motion_noise_jacobian("cv", x, T)
+    np.testing.assert_allclose(B @ B.T * 4.0, symbolic.cv_process_noise(T, 2.0, 2))
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_radar_jacobian_matches_finite_differences_including_near_the_branch_cut(model):
+    rng = np.random.default_rng(17)
+    n = len(symbolic.motion_state_names(model))
+    for bearing in (0.3, 2.0, np.pi - 1e-4, -np.pi + 1e-4, -1.2):
+        x = _random_state(model, rng)
+        r = rng.uniform(2, 30)
+        x[:2] = r * np.cos(bearing), r * np.sin(bearing)
+        G = symbolic.radar_jacobian(x, model)
+        assert G.shape == (3, n)
+
+        def h(s):
+            return symbolic.radar_observation(s, model)
+
+        # difference of wrapped bearings, so the ±π jump does not enter
+        cols = []
+        for i in range(n):
+            dx = np.zeros(n)
+            dx[i] = 1e-6
+            d = h(x + dx) - h(x - dx)
+            d[1] = (d[1] + np.pi) % (2 * np.pi) - np.pi
+            cols.append(d / 2e-6)
+        np.testing.assert_allclose(G, np.column_stack(cols), rtol=1e-6, atol=1e-7)
+
+
+def test_radar_rejects_the_origin_and_bad_shapes():
+    with pytest.raises(ValueError, match="range 0"):
+        symbolic.radar_observation(np.zeros(5))
+    with pytest.raises(ValueError, match="shape"):
+        symbolic.radar_jacobian(np.ones(4))  # ctrv needs 5
+
+
+def test_models_validate_their_inputs():
+    with pytest.raises(ValueError, match="model must be one of"):
+        symbolic.motion_step("bicycle", np.zeros(5), 0.1)
+    with pytest.raises(ValueError, match=r"shape \(5,\)"):
+        symbolic.motion_step("ctrv", np.zeros(4), 0.1)
+    with pytest.raises(ValueError, match="T must be"):
+        symbolic.motion_step("ctrv", np.zeros(5), -1.0)
+    with pytest.raises(ValueError, match="finite"):
+        symbolic.motion_jacobian("ca", np.full(6, np.nan), 0.1)
+
+
+@pytest.mark.parametrize("name", ["cv_planar_model", "ca_model", "ctrv_model", "ctra_model", "radar_model"])
+def test_model_derivations_are_registered_and_prove(name):
+    d = symbolic.derivations()[name]
+    assert d.verify()
