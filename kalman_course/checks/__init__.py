@@ -33,3 +33,13 @@ __all__ = [
     # chapter 03
     "cv_process_noise", "kf_predict", "kf_gain", "kf_update", "gnss_kf_run",
 ]
+
+# chapter 07
+from kalman_course.checks.imu import (  # noqa: E402
+    check_attitude_step as attitude_step,
+    check_mechanisation_run as mechanisation_run,
+    check_position_step as position_step,
+    check_velocity_step as velocity_step,
+)
+
+__all__ += ["attitude_step", "velocity_step", "position_step", "mechanisation_run"]
