@@ -198,7 +198,8 @@ def run_notebooks(nbs: list, *, timeout: float = 120.0, jobs: int = 1) -> list[t
                    "-p", "kalman_course.nbval_results", "--nbval-lax", "--nbval-current-env",
                    f"--nbval-cell-timeout={timeout:g}", "-c", str(tmp / "pytest.ini"),
                    "--rootdir", str(tmp), *chunk]
-            env = dict(os.environ, KALMAN_COURSE_RESULTS=str(results), MPLBACKEND="Agg")
+            env = dict(os.environ, KALMAN_COURSE_RESULTS=str(results))
+            env.pop("MPLBACKEND", None)  # the kernel picks its inline backend, as in JupyterLab
             proc = subprocess.Popen(cmd, cwd=tmp, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                     text=True, start_new_session=True)
             n_code = sum(c.cell_type == "code" for i in range(job, len(nbs), jobs) for c in nbs[i].cells)
