@@ -4,7 +4,7 @@ Lecture and solution notebooks are kept executed, with outputs, so that nbval ca
 a fresh run against them. ``kalman-course execute`` is the only way they should be
 rebuilt: it runs every cell in a fresh kernel started in the notebook's folder and then
 removes everything that would differ between two runs (execution timestamps, the Python
-patch version, random cell ids).
+patch version, random cell ids, how printed text was split into pieces).
 """
 
 from __future__ import annotations
@@ -50,6 +50,7 @@ def normalise(nb: nbformat.NotebookNode) -> nbformat.NotebookNode:
             cell["id"] = stable_cell_id(i, cell.source)
         seen.add(cell["id"])
         if cell.cell_type == "code":
+            cell.outputs = _coalesce_streams(cell.outputs)
             if cell.get("execution_count") is not None or cell.outputs:
                 count += 1
                 cell.execution_count = count
@@ -57,6 +58,18 @@ def normalise(nb: nbformat.NotebookNode) -> nbformat.NotebookNode:
                     if "execution_count" in out:
                         out["execution_count"] = count
     return nb
+
+
+def _coalesce_streams(outputs: list) -> list:
+    """Merge consecutive stdout (or stderr) pieces: how a print was split is timing noise."""
+    merged: list = []
+    for out in outputs:
+        if (out.get("output_type") == "stream" and merged and merged[-1].get("output_type") == "stream"
+                and merged[-1].get("name") == out.get("name")):
+            merged[-1]["text"] += out["text"]
+        else:
+            merged.append(out)
+    return merged
 
 
 def notebook_text(nb: nbformat.NotebookNode) -> str:
