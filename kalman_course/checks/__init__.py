@@ -43,3 +43,21 @@ from kalman_course.checks.imu import (  # noqa: E402
 )
 
 __all__ += ["attitude_step", "velocity_step", "position_step", "mechanisation_run"]
+
+# chapter 08
+from kalman_course.checks.eskf import (  # noqa: E402
+    check_eskf_covariance_update as eskf_covariance_update,
+    check_eskf_discretisation as eskf_discretisation,
+    check_eskf_error_dynamics as eskf_error_dynamics,
+    check_eskf_gain as eskf_gain,
+    check_eskf_inject as eskf_inject,
+    check_eskf_noise_jacobian as eskf_noise_jacobian,
+    check_eskf_pose_residual as eskf_pose_residual,
+    check_eskf_propagate as eskf_propagate,
+    check_eskf_reset as eskf_reset,
+    check_eskf_run as eskf_run,
+)
+
+__all__ += ["eskf_error_dynamics", "eskf_noise_jacobian", "eskf_discretisation", "eskf_propagate",
+            "eskf_pose_residual", "eskf_gain", "eskf_covariance_update", "eskf_inject", "eskf_reset",
+            "eskf_run"]
