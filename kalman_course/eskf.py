@@ -740,8 +740,8 @@ def evaluate(t, position, rotation, truth, P=None, rpe_delta: float = 1.0) -> di
     position : array_like, shape (K, 3)
     rotation : array_like, shape (K, 3, 3)
     truth : TruthData
-    P : array_like, shape (K, 15, 15), optional
-        The filter covariance, for the 6-dof pose NEES.
+    P : array_like, shape (K, 15, 15) or (K, 6, 6), optional
+        The filter covariance (or just its [δp, δθ] block), for the 6-dof pose NEES.
     rpe_delta : float
         Time separation of the relative pose error, s.
 
@@ -786,7 +786,7 @@ def evaluate(t, position, rotation, truth, P=None, rpe_delta: float = 1.0) -> di
     if P is not None:
         P = np.asarray(P, dtype=float)
         idx = [0, 1, 2, 6, 7, 8]
-        Pp = P[:, idx][:, :, idx]
+        Pp = P if P.shape[-1] == 6 else P[:, idx][:, :, idx]
         e6 = np.concatenate([ep, eth], axis=1)
         nees = np.einsum("ki,ki->k", e6, np.linalg.solve(Pp, e6[..., None])[..., 0])
         out["nees"] = nees
