@@ -34,6 +34,23 @@ __all__ = [
     "cv_process_noise", "kf_predict", "kf_gain", "kf_update", "gnss_kf_run",
 ]
 
+# chapters 04-06
+from kalman_course.checks.motion import (  # noqa: E402
+    check_ctrv_jacobian as ctrv_jacobian,
+    check_ctrv_step as ctrv_step,
+)
+from kalman_course.checks.ekf import (  # noqa: E402
+    check_ekf_update as ekf_update,
+    check_iekf_mean_step as iekf_mean_step,
+    check_iekf_update as iekf_update,
+    check_radar_h as radar_h,
+    check_radar_jacobian as radar_jacobian,
+    check_radar_residual as radar_residual,
+)
+
+__all__ += ["ctrv_step", "ctrv_jacobian", "radar_h", "radar_jacobian", "radar_residual", "ekf_update",
+            "iekf_mean_step", "iekf_update"]
+
 # chapter 07
 from kalman_course.checks.imu import (  # noqa: E402
     check_attitude_step as attitude_step,
@@ -61,3 +78,11 @@ from kalman_course.checks.eskf import (  # noqa: E402
 __all__ += ["eskf_error_dynamics", "eskf_noise_jacobian", "eskf_discretisation", "eskf_propagate",
             "eskf_pose_residual", "eskf_gain", "eskf_covariance_update", "eskf_inject", "eskf_reset",
             "eskf_run"]
+
+# chapter 08, bonus
+from kalman_course.checks.eskf import (  # noqa: E402
+    check_nominal_ekf_jacobian as nominal_ekf_jacobian,
+    check_nominal_ekf_observation as nominal_ekf_observation,
+)
+
+__all__ += ["nominal_ekf_observation", "nominal_ekf_jacobian"]

@@ -168,6 +168,8 @@ def check_iekf_mean_step(iekf_mean_step):
             expect_close(got, expected, f"the iterate {where}", rtol=1e-7, atol=1e-8, mistakes=[
                 (x_op + K @ r, "the step starts from the prior: x_{i+1} = x̌ + K (r − G (x̌ − x_op)); "
                                "the linearisation point only enters through g(x_op) and G"),
+                (x_op + K @ (r - Gm @ (x_check - x_op)), "the step starts from the prior x̌, not from "
+                                                         "x_op: x_{i+1} = x̌ + K (r − G (x̌ − x_op))"),
                 (x_check + K @ (r + Gm @ (x_check - x_op)), "sign: g(x) ≈ g(x_op) + G (x − x_op), so the "
                                                             "correction is − G (x̌ − x_op)"),
                 (x_check + K @ r, "the term − G (x̌ − x_op) is missing; it vanishes only at the first "
