@@ -34,7 +34,7 @@ import sympy as sp
 from kalman_course import so3
 from kalman_course.eskf_config import EskfConfig, load_config
 
-__all__ = ["rotate_jacobian", "quat_xi", "continuous_jacobian", "noise_jacobian", "propagate",
+__all__ = ["rotate_jacobian", "quat_xi", "quat_omega", "continuous_jacobian", "noise_jacobian", "propagate",
            "NominalEkfResult", "run_nominal_ekf", "REGULARISER"]
 
 #: Added to the quaternion block of the observation covariance so that S stays invertible.
@@ -86,7 +86,7 @@ def quat_xi(q) -> np.ndarray:
     return np.array([[-x, -y, -z], [w, -z, y], [z, w, -x], [-y, x, w]])
 
 
-def _omega_right(v) -> np.ndarray:
+def quat_omega(v) -> np.ndarray:
     """Ω(v) (4, 4) with q ⊗ (0, v) = Ω(v) q."""
     x, y, z = v
     return np.array([[0.0, -x, -y, -z], [x, 0.0, z, -y], [y, -z, 0.0, x], [z, y, -x, 0.0]])
@@ -101,7 +101,7 @@ def continuous_jacobian(q, f, w, b_a, b_w) -> np.ndarray:
     A[0:3, 3:6] = np.eye(3)
     A[3:6, 6:10] = rotate_jacobian(q, a)
     A[3:6, 10:13] = -_q2R(q / np.linalg.norm(q))
-    A[6:10, 6:10] = 0.5 * _omega_right(om)
+    A[6:10, 6:10] = 0.5 * quat_omega(om)
     A[6:10, 13:16] = -0.5 * quat_xi(q)
     return A
 

@@ -294,3 +294,38 @@ def check_eskf_run(run_eskf):
     expect_close(result[2], ref.rotation, "rotations", atol=1e-6)
     P = expect_shape(result[3], ref.P.shape, "P")
     expect_close(P, ref.P, "P at the update times", rtol=1e-3, atol=5e-9)
+
+
+# ---------------------------------------------------------------------------------------
+# Bonus: the nominal-state EKF
+# ---------------------------------------------------------------------------------------
+
+@check("nominal_ekf_observation")
+def check_nominal_ekf_observation(align_quaternion):
+    """``align_quaternion(q_check, q_meas)`` returns ±q_meas, whichever is closer to q_check."""
+    rng = np.random.default_rng(11)
+    for _ in range(6):
+        q = so3.matrix_to_quat(so3.exp(rng.normal(size=3)))
+        q_m = so3.matrix_to_quat(so3.quat_to_matrix(q) @ so3.exp(rng.normal(size=3) * 0.01))
+        for sign in (1.0, -1.0):
+            got = call(align_quaternion, q, sign * q_m)
+            expect_close(got, q_m, "the aligned measured quaternion", atol=1e-12, mistakes=[
+                (-q_m, "q and −q are the same rotation, but the EKF subtracts quaternions: pick the sign "
+                       "of q_meas that makes q_measᵀ q̌ ≥ 0"),
+            ], hint="return q_meas if q_meas · q_check ≥ 0, else −q_meas")
+
+
+@check("nominal_ekf_jacobian")
+def check_nominal_ekf_jacobian(nominal_jacobian):
+    """``nominal_jacobian(q, f, w, b_a, b_w)`` returns A = ∂ẋ/∂x (16, 16)."""
+    from kalman_course import nominal_ekf
+
+    for x, f, w in _cases():
+        q = so3.matrix_to_quat(x.rotation)
+        got = expect_shape(call(nominal_jacobian, q, f, w, x.accel_bias, x.gyro_bias), (16, 16), "A")
+        ref = nominal_ekf.continuous_jacobian(q, f, w, x.accel_bias, x.gyro_bias)
+        flip = ref.copy()
+        flip[6:10, 13:16] *= -1
+        expect_close(got, ref, "A", atol=1e-10, mistakes=[
+            (flip, "q̇ = ½ q ⊗ (0, ω − b_ω): the gyro bias enters with a minus sign, ∂q̇/∂b_ω = −½ Ξ(q)"),
+        ], hint="compare block by block: ṗ = v, v̇ = R(q)(f − b_a) + g, q̇ = ½ q ⊗ (0, ω − b_ω)")
