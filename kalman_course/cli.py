@@ -11,6 +11,7 @@ data      rebuild the shipped KITTI excerpts from the PyPI packages
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -66,8 +67,12 @@ def _cmd_build(args: argparse.Namespace) -> int:
 def _cmd_grade(args: argparse.Namespace) -> int:
     from kalman_course import grading
 
-    paths = _expand_notebooks(args.paths, recursive=True)
-    if not paths:
+    submissions = []
+    for item in args.paths:
+        root = Path(item)
+        for path in _expand_notebooks([item], recursive=True):
+            submissions.append((path, grading.learner_of(path, root if root.is_dir() else None)))
+    if not submissions:
         print(f"error: no notebooks found in {' '.join(args.paths)}", file=sys.stderr)
         return 2
     try:
@@ -75,21 +80,27 @@ def _cmd_grade(args: argparse.Namespace) -> int:
     except FileNotFoundError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    results = []
-    for i, path in enumerate(paths, 1):
-        print(f"[{i}/{len(paths)}] grading {path} ...", end=" ", flush=True)
-        result = grading.grade_notebook(path, release, timeout=args.timeout)
-        print(f"{result.status}, {result.points}/{result.possible} points ({result.seconds:.1f} s)", flush=True)
-        results.append(result)
+
+    def progress(done, total, r):
+        who = f"{r.learner}: " if r.learner != "-" else ""
+        print(f"[{done}/{total}] {who}{r.path}: {r.status}, {r.points}/{r.possible} points "
+              f"({r.seconds:.1f} s)", flush=True)
+
+    jobs = args.jobs or os.cpu_count() or 1
+    results = grading.grade_many(submissions, release, timeout=args.timeout, jobs=jobs, progress=progress)
     print()
     print(grading.format_table(results))
+    print(grading.format_summary(results))
     if args.csv:
         grading.write_csv(results, args.csv)
         print(f"wrote {args.csv}")
     if args.json:
         grading.write_json(results, args.json)
         print(f"wrote {args.json}")
-    return 0 if all(r.status == grading.GRADED for r in results) else 1
+    if args.feedback:
+        written = grading.write_feedback(results, args.feedback)
+        print(f"wrote {len(written)} feedback file(s) to {args.feedback}")
+    return 0 if all(r.status in grading.RAN_TO_THE_END for r in results) else 1
 
 
 def _cmd_data_build(args: argparse.Namespace) -> int:
@@ -138,6 +149,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--timeout", type=float, default=120.0, help="per-cell timeout in seconds (default 120)")
     p.add_argument("--csv", help="also write the gradebook as CSV to this file")
     p.add_argument("--json", help="also write the full results as JSON to this file")
+    p.add_argument("--feedback", help="write one Markdown feedback file per learner into this folder")
+    p.add_argument("--jobs", type=int, default=0,
+                   help="submissions graded in parallel, each in its own kernel (default: number of cores)")
     p.set_defaults(func=_cmd_grade)
 
     p = sub.add_parser("data", help="KITTI excerpt tooling")

@@ -29,9 +29,14 @@ from kalman_course.authoring import CHECK_OUTPUT_TAG, GRADER_TAG, IGNORE_OUTPUT_
 ANSI_RE = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
 EXCEPTION_LINE_RE = re.compile(r"^\s*([A-Za-z_][\w.]*(?:Error|Failed|Exception|Interrupt)): (.+)$", re.M)
 
-#: Statuses of a graded notebook. Anything but GRADED means it did not run to the end.
-GRADED, TIMED_OUT, KERNEL_DIED, NOT_A_NOTEBOOK, NO_RELEASE, RUN_ERROR = (
-    "graded", "timed out", "kernel died", "not a notebook", "no release", "run error")
+#: Statuses of a graded notebook. Only GRADED and TAMPERED_RESTORED ran to the end.
+GRADED, TAMPERED_RESTORED, TIMED_OUT, KERNEL_DIED, NOT_A_NOTEBOOK, NO_RELEASE, RUN_ERROR = (
+    "graded", "tampered and restored", "timed out", "kernel died", "not a notebook", "no release",
+    "run error")
+RAN_TO_THE_END = (GRADED, TAMPERED_RESTORED)
+
+#: In a class folder, ``alice__03_kalman_filter.ipynb`` belongs to learner ``alice``.
+LEARNER_SEPARATOR = "__"
 
 
 @dataclass
@@ -50,11 +55,13 @@ class NotebookResult:
     """The outcome of grading one notebook."""
 
     path: str
+    learner: str = ""
     chapter: str = ""
     status: str = GRADED
     checks: list[CheckResult] = field(default_factory=list)
     tampered: list[str] = field(default_factory=list)
     readded: list[str] = field(default_factory=list)
+    learner_errors: list[str] = field(default_factory=list)
     detail: str = ""
     seconds: float = 0.0
 
@@ -69,7 +76,7 @@ class NotebookResult:
     @property
     def hint(self) -> str:
         """The first line of the first failing check's message (or the run problem)."""
-        if self.status != GRADED and self.detail:
+        if self.status not in RAN_TO_THE_END and self.detail:
             return self.detail
         for c in self.checks:
             if c.points < c.possible:
@@ -226,17 +233,38 @@ def run_notebooks(nbs: list, *, timeout: float = 120.0, jobs: int = 1) -> list[t
 def _notebook_status(cells: list[dict], timeout: float) -> tuple[str, list[dict], str]:
     """Tell from nbval's cell reports whether the notebook ran to the end."""
     messages = " ".join(c["message"] for c in cells)
+    # A dead kernel first shows as a timeout of the cell that killed it (nbval only waits
+    # for a reply), then as "Kernel dead" on every later cell: test for that first.
+    if re.search(r"Kernel (?:dead|died)", messages, re.I):
+        return KERNEL_DIED, cells, "the kernel died (os._exit, a crash, or out of memory)"
     if "Timeout of" in messages:
         return TIMED_OUT, cells, f"a cell ran longer than {timeout:g} s"
-    if re.search(r"Kernel (?:dead|died)|kernel died", messages, re.I):
-        return KERNEL_DIED, cells, "the kernel died (os._exit, a crash, or out of memory)"
     return GRADED, cells, ""
 
 
-def grade_notebook(path: str | Path, release: dict, *, timeout: float = 120.0) -> NotebookResult:
+def learner_of(path: Path, root: Path | None = None) -> str:
+    """Name the learner a submission belongs to.
+
+    In a class folder ``root``, a notebook inside a sub-folder belongs to that sub-folder's
+    learner (``root/alice/03_kf.ipynb`` → ``alice``); a notebook directly in ``root`` is named
+    ``<learner>__<notebook>`` (``root/alice__03_kf.ipynb`` → ``alice``). A file given on its
+    own uses the same file-name rule, and is ``"-"`` (yourself) without it.
+    """
+    path = Path(path)
+    if root is not None:
+        parts = path.relative_to(root).parts
+        if len(parts) > 1:
+            return parts[0]
+    if LEARNER_SEPARATOR in path.name:
+        return path.name.split(LEARNER_SEPARATOR, 1)[0]
+    return "-"
+
+
+def grade_notebook(path: str | Path, release: dict, *, timeout: float = 120.0,
+                   learner: str = "-") -> NotebookResult:
     """Grade one submitted notebook against the released exercises (``release`` by chapter)."""
     path = Path(path)
-    result = NotebookResult(path=str(path))
+    result = NotebookResult(path=str(path), learner=learner)
     start = time.perf_counter()
     try:
         submission = nbformat.read(path, as_version=4)
@@ -252,7 +280,12 @@ def grade_notebook(path: str | Path, release: dict, *, timeout: float = 120.0) -
     ref = release[result.chapter]
     nb, result.tampered, result.readded = restore_graders(submission, ref)
     result.status, cells, result.detail = run_notebook(nb, timeout=timeout)
+    if result.status == GRADED and (result.tampered or result.readded):
+        result.status = TAMPERED_RESTORED
     by_id = {c["cell_id"]: c for c in cells}
+    graders = {cell["id"] for cell in ref.cells if grader_info(cell)}
+    result.learner_errors = [f"cell {c['cell_id']}: {exception_summary(c['message'])}"
+                             for c in cells if not c["passed"] and c["cell_id"] not in graders]
     for cell in ref.cells:
         info = grader_info(cell)
         if not info:
@@ -266,16 +299,96 @@ def grade_notebook(path: str | Path, release: dict, *, timeout: float = 120.0) -
     return result
 
 
+def grade_many(submissions: list[tuple[Path, str]], release: dict, *, timeout: float = 120.0,
+               jobs: int = 1, progress=None) -> list[NotebookResult]:
+    """Grade (path, learner) pairs, ``jobs`` at a time, each in its own kernel.
+
+    ``progress(done, total, result)`` is called as each one finishes. One submission's
+    failure (even an unexpected error in the grader itself) never stops the others.
+    """
+    from concurrent.futures import ThreadPoolExecutor, as_completed
+
+    def one(path, learner):
+        try:
+            return grade_notebook(path, release, timeout=timeout, learner=learner)
+        except Exception as exc:  # a bug here must not lose the rest of the class
+            return NotebookResult(str(path), learner, status=RUN_ERROR, detail=f"{type(exc).__name__}: {exc}")
+
+    results: list[NotebookResult | None] = [None] * len(submissions)
+    with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+        futures = {pool.submit(one, path, learner): i for i, (path, learner) in enumerate(submissions)}
+        for done, future in enumerate(as_completed(futures), 1):
+            results[futures[future]] = future.result()
+            if progress:
+                progress(done, len(submissions), results[futures[future]])
+    return results
+
+
+def format_summary(results: list[NotebookResult]) -> str:
+    """Counts per status and the mean points per chapter."""
+    from collections import Counter, defaultdict
+
+    counts = Counter(r.status for r in results)
+    lines = ["submissions: " + ", ".join(f"{n} {status}" for status, n in sorted(counts.items()))]
+    by_chapter = defaultdict(list)
+    for r in results:
+        if r.status in RAN_TO_THE_END:
+            by_chapter[r.chapter].append(r)
+    for chapter, rs in sorted(by_chapter.items()):
+        mean = sum(r.points for r in rs) / len(rs)
+        lines.append(f"chapter {chapter}: {len(rs)} graded, mean {mean:.1f}/{rs[0].possible} points")
+    return "\n".join(lines)
+
+
+def write_feedback(results: list[NotebookResult], folder: str | Path) -> list[Path]:
+    """Write one Markdown feedback file per learner with every failed check's message."""
+    from collections import defaultdict
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    per_learner = defaultdict(list)
+    for r in results:
+        per_learner[r.learner or "-"].append(r)
+    written = []
+    for learner, rs in sorted(per_learner.items()):
+        lines = [f"# Feedback for {learner}", ""]
+        for r in sorted(rs, key=lambda r: (r.chapter, r.path)):
+            lines += [f"## Chapter {r.chapter or '?'}: `{Path(r.path).name}`", "",
+                      f"{r.points}/{r.possible} points — {r.status}", ""]
+            if r.status not in RAN_TO_THE_END:
+                lines += [f"The notebook could not be graded to the end: {r.detail}.", ""]
+            if r.tampered or r.readded:
+                lines += ["Grader cells were restored from the released exercise before grading "
+                          f"(edited: {', '.join(r.tampered) or 'none'}; missing: {', '.join(r.readded) or 'none'}).", ""]
+            for error in r.learner_errors:
+                lines.append(f"- your {error}")
+            if r.learner_errors:
+                lines.append("")
+            for c in r.checks:
+                mark = "passed" if c.points == c.possible else "failed"
+                lines.append(f"- **{c.check}** ({c.points}/{c.possible}): {mark}" + (f" — {c.message}" if c.message else ""))
+            lines.append("")
+        safe = re.sub(r"[^\w.-]", "_", learner) or "_"
+        path = folder / f"{safe}.md"
+        path.write_text("\n".join(lines), encoding="utf-8")
+        written.append(path)
+    return written
+
+
 def format_table(results: list[NotebookResult]) -> str:
     """Return the points table printed by ``kalman-course grade``."""
-    rows = [("chapter", "notebook", "points", "status", "first hint")]
+    rows = [("learner", "chapter", "notebook", "points", "status", "first hint")]
     for r in results:
         hint = r.hint.splitlines()[0] if r.hint else ""
         hint = hint.removeprefix("CheckFailed: ")
-        rows.append((r.chapter or "?", Path(r.path).name, f"{r.points}/{r.possible}", r.status, hint))
-    widths = [max(len(row[i]) for row in rows) for i in range(4)]
-    lines = ["  ".join(cell.ljust(w) for cell, w in zip(row[:4], widths)) + "  " + row[4] for row in rows]
-    lines.insert(1, "-" * min(sum(widths) + 8 + 10, 120))
+        rows.append((r.learner or "-", r.chapter or "?", Path(r.path).name, f"{r.points}/{r.possible}",
+                     r.status, hint))
+    if all(row[0] == "-" for row in rows[1:]):
+        rows = [row[1:] for row in rows]  # grading yourself: no learner column
+    ncol = len(rows[0]) - 1
+    widths = [max(len(row[i]) for row in rows) for i in range(ncol)]
+    lines = ["  ".join(cell.ljust(w) for cell, w in zip(row[:ncol], widths)) + "  " + row[ncol] for row in rows]
+    lines.insert(1, "-" * min(sum(widths) + 2 * ncol + 10, 120))
     total, possible = sum(r.points for r in results), sum(r.possible for r in results)
     lines.append(f"total {total}/{possible} points")
     for r in results:
@@ -286,13 +399,13 @@ def format_table(results: list[NotebookResult]) -> str:
 
 
 def write_csv(results: list[NotebookResult], path: str | Path) -> None:
-    """Write one row per notebook: chapter, points, status, restored cells, each check's points."""
+    """Write one row per notebook: learner, chapter, status, points, each check's points, restored cells."""
     with open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
-        w.writerow(["notebook", "chapter", "status", "points", "possible", "checks",
+        w.writerow(["learner", "notebook", "chapter", "status", "points", "possible", "checks",
                     "tampered", "readded", "hint"])
         for r in results:
-            w.writerow([r.path, r.chapter, r.status, r.points, r.possible,
+            w.writerow([r.learner, r.path, r.chapter, r.status, r.points, r.possible,
                         ";".join(f"{c.check}={c.points}/{c.possible}" for c in r.checks),
                         ";".join(r.tampered), ";".join(r.readded), r.hint])
 

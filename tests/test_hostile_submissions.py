@@ -1,0 +1,168 @@
+"""A class of hostile submissions, graded in one run: each gets the status and points it deserves.
+
+Every case starts from a correct chapter-01 notebook (the released exercise with the
+solution's code) and breaks it in one way. The whole class is graded by the command line
+with two jobs, and no submission file may change.
+"""
+
+import copy
+import hashlib
+import json
+
+import nbformat
+import pytest
+from nbformat.v4 import new_code_cell
+
+from kalman_course import authoring, cli, grading
+
+from conftest import ROOT
+
+pytestmark = pytest.mark.slow
+
+CHAPTER = "01_bayes_rule.ipynb"
+FULL = 8  # points of chapter 01
+
+
+def _correct():
+    exercise = nbformat.read(ROOT / "exercises" / CHAPTER, as_version=4)
+    solution = authoring.render(nbformat.read(ROOT / "solutions" / CHAPTER, as_version=4), set())
+    sources = {c["id"]: c.source for c in solution.cells}
+    for cell in exercise.cells:
+        if authoring.grader_info(cell) is None:
+            cell.source = sources[cell["id"]]
+    return exercise
+
+
+def _cell(nb, cid):
+    return next(c for c in nb.cells if c["id"] == cid)
+
+
+def _insert_after(nb, cid, source):
+    i = [c["id"] for c in nb.cells].index(cid)
+    cell = new_code_cell(source)
+    cell["id"] = "learner-extra"
+    nb.cells.insert(i + 1, cell)
+    return nb
+
+
+def _edit(cid, old, new):
+    def change(nb):
+        cell = _cell(nb, cid)
+        assert old in cell.source, (cid, old)
+        cell.source = cell.source.replace(old, new)
+        return nb
+    return change
+
+
+def _replace(cid, source):
+    def change(nb):
+        _cell(nb, cid).source = source
+        return nb
+    return change
+
+
+def _delete(cid):
+    def change(nb):
+        nb.cells = [c for c in nb.cells if c["id"] != cid]
+        return nb
+    return change
+
+
+def _rename(cid, new):
+    def change(nb):
+        _cell(nb, cid)["id"] = new
+        return nb
+    return change
+
+
+# case: (how to break it, expected status, expected points or None when not fixed)
+CASES = {
+    "exception": (_edit("likelihood", "def sensor_likelihood", 'raise RuntimeError("oops")\ndef sensor_likelihood'),
+                  grading.GRADED, 4),
+    "infinite_loop": (lambda nb: _insert_after(nb, "setup", "while True:\n    pass"), grading.TIMED_OUT, None),
+    "kernel_dies": (lambda nb: _insert_after(nb, "setup", "import os\nos._exit(1)"), grading.KERNEL_DIED, 0),
+    "nan_result": (_edit("update", "return posterior", "return posterior * np.nan"), grading.GRADED, 4),
+    "wrong_shape": (_edit("predict", "return transition @ belief", "return (transition @ belief)[:, None]"),
+                    grading.GRADED, 4),
+    "huge_output": (lambda nb: _insert_after(nb, "setup", 'print("x" * 5_000_000)'), grading.GRADED, FULL),
+    "warnings": (_edit("update", "    unnormalised =",
+                       '    import warnings\n    warnings.warn("careful")\n    print("debug")\n    unnormalised ='),
+                 grading.GRADED, FULL),
+    "grader_prints_success": (lambda nb: _replace("grader-door_likelihood", 'print("door_likelihood: passed")')(
+        _edit("likelihood", "world == z, p_correct, 1.0 - p_correct", "world == z, 1.0 - p_correct, p_correct")(nb)),
+        grading.TAMPERED_RESTORED, 4),  # the wrong likelihood also sinks the recursion check
+    "grader_deleted": (_delete("grader-histogram_update"), grading.TAMPERED_RESTORED, FULL),
+    "cell_id_changed": (_rename("grader-histogram_predict", "my-cell"), grading.TAMPERED_RESTORED, FULL),
+    "imports_reference": (_replace("update", "from kalman_course.bayes import histogram_update"), grading.GRADED, FULL),
+}
+RAW = {"corrupt_json": "{ not json", "empty": ""}
+
+
+@pytest.fixture(scope="module")
+def graded(tmp_path_factory):
+    root = tmp_path_factory.mktemp("class")
+    for name, (change, _, _) in CASES.items():
+        (root / name).mkdir()
+        nbformat.write(change(copy.deepcopy(_correct())), root / name / CHAPTER)
+    for name, text in RAW.items():
+        (root / name).mkdir()
+        (root / name / CHAPTER).write_text(text)
+    (root / "other_chapter").mkdir()
+    (root / "other_chapter" / CHAPTER).write_bytes((ROOT / "exercises" / "02_gaussians.ipynb").read_bytes())
+    digests = {p: hashlib.sha256(p.read_bytes()).hexdigest() for p in root.rglob("*.ipynb")}
+    out = tmp_path_factory.mktemp("out")
+    code = cli.main(["grade", str(root), "--release", str(ROOT / "exercises"), "--jobs", "2", "--timeout", "10",
+                     "--json", str(out / "g.json"), "--csv", str(out / "g.csv"), "--feedback", str(out / "fb")])
+    results = {r["learner"]: r for r in json.loads((out / "g.json").read_text())}
+    return code, results, digests, out
+
+
+def test_every_case_is_graded_once_and_the_run_reports_failure(graded):
+    code, results, _, _ = graded
+    assert code == 1, "some submissions could not be run: the exit status must say so"
+    assert set(results) == set(CASES) | set(RAW) | {"other_chapter"}
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_case_status_and_points(graded, name):
+    _, results, _, _ = graded
+    _, status, points = CASES[name]
+    r = results[name]
+    assert r["status"] == status, r["hint"]
+    if points is not None:
+        assert r["points"] == points, [c["message"] for c in r["checks"]]
+    assert r["possible"] == FULL
+
+
+@pytest.mark.parametrize("name", sorted(RAW))
+def test_unreadable_submissions(graded, name):
+    assert graded[1][name]["status"] == grading.NOT_A_NOTEBOOK
+
+
+def test_restorations_are_reported_and_nothing_false_is_said(graded):
+    results = graded[1]
+    assert results["grader_prints_success"]["tampered"] == ["grader-door_likelihood"]
+    assert results["grader_deleted"]["readded"] == ["grader-histogram_update"]
+    assert results["cell_id_changed"]["readded"] == ["grader-histogram_predict"]
+    assert results["imports_reference"]["tampered"] == [] and results["imports_reference"]["readded"] == []
+    assert "grader_prints_success" not in [n for n, r in results.items() if r["points"] == FULL]
+
+
+def test_other_chapter_is_graded_as_what_it_is(graded):
+    r = graded[1]["other_chapter"]
+    assert (r["chapter"], r["status"], r["points"]) == ("02", grading.GRADED, 0)
+
+
+def test_submissions_are_never_modified(graded):
+    _, _, digests, _ = graded
+    assert {p: hashlib.sha256(p.read_bytes()).hexdigest() for p in digests} == digests
+
+
+def test_feedback_and_gradebook_files(graded):
+    _, results, _, out = graded
+    feedback = {p.stem: p.read_text() for p in (out / "fb").glob("*.md")}
+    assert set(feedback) == set(results)
+    assert "door_likelihood" in feedback["exception"] and "RuntimeError" in feedback["exception"]
+    assert "restored" in feedback["grader_deleted"]
+    rows = (out / "g.csv").read_text().splitlines()
+    assert len(rows) == len(results) + 1 and rows[0].startswith("learner,")
