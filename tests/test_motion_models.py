@@ -157,3 +157,35 @@ def test_models_validate_their_inputs():
 def test_model_derivations_are_registered_and_prove(name):
     d = symbolic.derivations()[name]
     assert d.verify()
+
+
+# ---------------------------------------------------------------- chapter 04 on KITTI
+
+def test_kitti_model_states_are_consistent_across_models():
+    from kalman_course import motion
+
+    t = np.array([320.0, 330.0, 340.0])
+    _, cv = motion.kitti_model_states("turns", "cv", t)
+    _, ctra = motion.kitti_model_states("turns", "ctra", t)
+    _, ca = motion.kitti_model_states("turns", "ca", t)
+    assert cv.shape == (3, 4) and ctra.shape == (3, 6) and ca.shape == (3, 6)
+    np.testing.assert_allclose(cv[:, :2], ctra[:, :2])
+    np.testing.assert_allclose(np.hypot(cv[:, 2], cv[:, 3]), ctra[:, 2])
+    np.testing.assert_allclose(ctra[:, 2] * np.cos(ctra[:, 3]), cv[:, 2], atol=1e-12)
+    np.testing.assert_allclose(ca[:, :4], cv)
+    with pytest.raises(ValueError, match="model must be one of"):
+        motion.kitti_model_states("turns", "bicycle", t)
+
+
+def test_prediction_error_grows_with_the_horizon_and_short_horizons_are_good():
+    from kalman_course import motion
+
+    err = motion.horizon_errors("cruise", horizons=(0.5, 1.0, 2.0, 4.0))
+    assert err.rms.shape == (4, 4) and err.n_starts > 10
+    assert np.all(np.diff(err.rms, axis=1) > 0)
+    assert np.all(err.rms[:, 0] < 0.2)            # half a second ahead: decimetres at most
+    assert np.all(err.p95 >= 0)
+    t, truth, paths = motion.predicted_paths("cruise", 430.0, 2.0, n=5)
+    assert t.shape == (5,) and truth.shape == (5, 2)
+    for path in paths.values():
+        np.testing.assert_allclose(path[0], truth[0], atol=0.05)   # every model starts on the truth
