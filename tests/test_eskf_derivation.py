@@ -51,3 +51,29 @@ def test_reset_jacobian_first_order_form_agrees_with_the_filter():
     G = eskf.reset_jacobian(np.concatenate([np.zeros(6), v, np.zeros(6)]))
     np.testing.assert_allclose(Jn, G[6:9, 6:9], atol=3e-4)          # differs at O(|δθ̂|²) = 1e-4
     assert np.abs(Jn - (np.eye(3) - 0.5 * so3.hat(v))).max() > 0.005  # the other sign is wrong
+
+
+@pytest.mark.parametrize("build", eskf_derivation.BUILDERS, ids=lambda b: b.__name__)
+def test_every_checked_equation_can_fail(build):
+    import dataclasses
+
+    d = build()
+    for eq in (e for e in d.equations if e.checked):
+        rhs = eq.rhs
+        if isinstance(rhs, sp.MatrixBase):
+            bump = sp.zeros(*rhs.shape)
+            bump[0, 0] = sp.Rational(1, 7)
+            wrong = dataclasses.replace(eq, rhs=sp.Matrix(rhs) + bump)
+        else:
+            wrong = dataclasses.replace(eq, rhs=rhs + sp.Rational(1, 7))
+        assert not wrong.holds(), eq.label
+
+
+def test_derivations_can_join_the_course_registry():
+    from kalman_course import symbolic
+
+    names = [b.__name__ for b in eskf_derivation.BUILDERS]
+    assert not set(names) & {b.__name__ for b in symbolic._BUILDERS} or all(
+        symbolic.derivation(n).verify() for n in names)
+    for build in eskf_derivation.BUILDERS:
+        assert build().name == build.__name__
