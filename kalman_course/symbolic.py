@@ -1265,7 +1265,7 @@ def radar_model() -> Derivation:
     G_turn = h_turn.jacobian(X_turn)
     chain = G.subs(polar) * sp.Matrix([px, py, v * sp.cos(psi), v * sp.sin(psi)]).jacobian(X_turn)
     equations = [
-        Equation("observation", sp.Matrix(sp.symbols(r"rho phi \dot{rho}")), h,
+        Equation("observation", sp.Matrix(sp.symbols("rho phi rhodot")), h,
                  r"range, bearing (atan2, in $(-\pi, \pi]$) and range rate, the velocity projected on "
                  r"the line of sight", "definition"),
         Equation("jacobian_hand", G, G_hand,
