@@ -5,6 +5,7 @@ Subcommands
 execute   run lecture/solution notebooks in place and store their outputs
 build     write exercises/ from solutions/ (``--check`` verifies they are in sync)
 grade     grade exercise notebooks and print a points table
+export    write the derivations as LaTeX/Markdown, or the lectures as offline HTML
 data      rebuild the shipped KITTI excerpts from the PyPI packages
 """
 
@@ -103,6 +104,37 @@ def _cmd_grade(args: argparse.Namespace) -> int:
     return 0 if all(r.status in grading.RAN_TO_THE_END for r in results) else 1
 
 
+def _cmd_export(args: argparse.Namespace) -> int:
+    import time
+
+    from kalman_course import export
+
+    start = time.perf_counter()
+    if args.what == "derivations":
+        if args.to not in ("tex", "md"):
+            print("error: derivations export --to tex or --to md", file=sys.stderr)
+            return 2
+        paths = [export.export_derivations(args.to, args.output)]
+    else:
+        if args.to != "html":
+            print("error: notebooks export --to html", file=sys.stderr)
+            return 2
+        notebooks = _expand_notebooks(args.paths or ["notebooks"])
+        if not notebooks:
+            print("error: no notebooks to export", file=sys.stderr)
+            return 2
+        try:
+            paths = export.export_notebooks_html(
+                notebooks, args.output, progress=lambda i, n, p: print(f"[{i}/{n}] wrote {p}", flush=True))
+        except FileNotFoundError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+    for path in paths[:1]:
+        print(f"wrote {path}")
+    print(f"exported {len(paths)} file(s) in {time.perf_counter() - start:.1f} s")
+    return 0
+
+
 def _cmd_data_build(args: argparse.Namespace) -> int:
     from kalman_course.data.build import main as build_main
 
@@ -154,6 +186,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="submissions graded in parallel, each in its own kernel (default: number of cores)")
     p.set_defaults(func=_cmd_grade)
 
+    p = sub.add_parser("export", help="export derivations (LaTeX/Markdown) or lectures (HTML)")
+    p.add_argument("what", choices=["derivations", "notebooks"])
+    p.add_argument("paths", nargs="*", help="notebooks to export (default: notebooks/)")
+    p.add_argument("--to", required=True, help="tex or md for derivations; html for notebooks")
+    p.add_argument("-o", "--output", required=True, help="folder to write to")
+    p.set_defaults(func=_cmd_export)
+
     p = sub.add_parser("data", help="KITTI excerpt tooling")
     data_sub = p.add_subparsers(dest="data_command", required=True)
     q = data_sub.add_parser("build", help="rebuild the KITTI excerpts from the PyPI packages (needs the network)")
@@ -164,7 +203,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra and args.command == "export":
+        args.paths = [*args.paths, *extra]  # notebooks may follow the options
+    elif extra:
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
     return args.func(args)
 
 

@@ -1,0 +1,70 @@
+"""Instructor exports: derivations as LaTeX and Markdown, lectures as offline HTML."""
+
+import re
+import shutil
+import subprocess
+
+import pytest
+
+from kalman_course import cli, export
+
+from conftest import ROOT
+
+
+@pytest.fixture(scope="module")
+def derivations():
+    return export.all_derivations()
+
+
+@pytest.fixture(scope="module")
+def markdown(tmp_path_factory):
+    out = tmp_path_factory.mktemp("md")
+    assert cli.main(["export", "derivations", "--to", "md", "-o", str(out)]) == 0
+    return (out / "derivations.md").read_text()
+
+
+def test_markdown_has_every_derivation_and_labelled_equation(derivations, markdown):
+    for name, d in derivations.items():
+        assert f"## {d.title}" in markdown
+        for eq in d.equations:
+            assert f"\\tag{{{name}:{eq.label}}}" in markdown
+    assert markdown.count("$$") == 2 * sum(len(d.equations) for d in derivations.values())
+
+
+def test_latex_is_a_standalone_document_with_unique_labels(derivations, tmp_path):
+    tex = export.derivations_latex(derivations)
+    assert tex.startswith("\\documentclass") and tex.rstrip().endswith("\\end{document}")
+    labels = re.findall(r"\\label\{(eq:[^}]*)\}", tex)
+    assert len(labels) == sum(len(d.equations) for d in derivations.values())
+    assert len(set(labels)) == len(labels)
+    assert "\n\n\\end{equation}" not in tex, "blank lines inside maths do not compile"
+
+
+@pytest.mark.skipif(shutil.which("pdflatex") is None, reason="no TeX engine installed")
+def test_latex_compiles(derivations, tmp_path):
+    (tmp_path / "derivations.tex").write_text(export.derivations_latex(derivations))
+    run = subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", "derivations.tex"],
+                         cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stdout[-2000:]
+    assert (tmp_path / "derivations.pdf").stat().st_size > 10_000
+
+
+def test_latex_escapes_prose_but_keeps_maths():
+    assert export._latex_text("x_1 & 50% $a_1$") == r"x\_1 \& 50\% $a_1$"
+
+
+def test_notebooks_export_to_offline_html(tmp_path):
+    out = tmp_path / "site"
+    lecture = ROOT / "notebooks" / "01_bayes_rule.ipynb"
+    assert cli.main(["export", "notebooks", "--to", "html", "-o", str(out), str(lecture)]) == 0
+    page = (out / "01_bayes_rule.html").read_text()
+    assert "mathjax/MathJax.js" in page
+    assert not re.search(r'(?:src|href)="https?://', page), "the page must not load anything remote"
+    assert (out / "mathjax" / "MathJax.js").is_file()
+    assert 'href="01_bayes_rule.html"' in (out / "index.html").read_text()
+
+
+def test_bad_format_is_refused(tmp_path, capsys):
+    assert cli.main(["export", "derivations", "--to", "pdf", "-o", str(tmp_path)]) == 2
+    assert cli.main(["export", "notebooks", "--to", "tex", "-o", str(tmp_path)]) == 2
+    assert "--to" in capsys.readouterr().err
