@@ -609,7 +609,6 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
     R_gnss = np.eye(3) * cfg.gnss_std ** 2
     pose_idx = np.array([0, 1, 2, 6, 7, 8])
     exact = cfg.exact_reset
-    di = np.arange(15)
 
     # outputs: one row per distinct event node
     out_nodes, first = np.unique(ev_node, return_index=True)
@@ -625,7 +624,6 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
         all_p[0], all_R[0] = p, R
 
     F_template = np.tile(_I15, (int(np.max(np.diff(np.concatenate([[0], out_nodes])), initial=1)), 1, 1))
-    tmp = np.empty((15, 15))
     e = 0                       # index into the sorted events
     node = 0
     for oi, target in enumerate(out_nodes):
@@ -659,14 +657,15 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
             Fs[:, 3:6, 9:12] = -Rs[:-1] * dt3
             Fs[:, 6:9, 6:9] -= _hat_batch(w_mid[sl] - bw) * dt3
             Fs[:, 6, 12] = Fs[:, 7, 13] = Fs[:, 8, 14] = -dt
-            Qs = np.zeros((n, 15, 15))
-            Qs[:, di, di] = qd[sl]
-            P = P.copy()
-            for i in range(n):
-                Fi = Fs[i]
-                np.matmul(Fi, P, out=tmp)
-                np.matmul(tmp, Fi.T, out=P)
-                P += Qs[i]
+            # P_n = Φ P Φᵀ + Σ_i Ψ_i Q_i Ψ_iᵀ with Ψ_i = F_{n−1} ⋯ F_{i+1} and Φ = Ψ_0 F_0: the
+            # same as n sequential steps F P Fᵀ + Q, with one matrix product per step
+            Psi = np.empty((n, 15, 15))
+            Psi[n - 1] = _I15
+            for i in range(n - 2, -1, -1):
+                np.matmul(Psi[i + 1], Fs[i + 1], out=Psi[i])
+            Phi = Psi[0] @ Fs[0]
+            Pq = (Psi * qd[sl][:, None, :]) @ np.swapaxes(Psi, 1, 2)
+            P = Phi @ P @ Phi.T + Pq.sum(axis=0)
             P = 0.5 * (P + P.T)
             p, v, R = p_new, vs[-1].copy(), Rs[-1]
             node = target
