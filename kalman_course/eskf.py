@@ -607,6 +607,7 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
     P = initial_covariance(cfg) if P0 is None else np.array(P0, dtype=float)
     R_lidar = np.diag(cfg.lidar_std ** 2)
     R_gnss = np.eye(3) * cfg.gnss_std ** 2
+    r_lidar, r_gnss = np.diag(R_lidar).copy(), np.diag(R_gnss).copy()
     pose_idx = np.array([0, 1, 2, 6, 7, 8])
     exact = cfg.exact_reset
 
@@ -684,7 +685,7 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
                 K = np.linalg.solve(S, Pc.T).T
                 A = _I15.copy()
                 A[:, pose_idx] -= K
-                P = A @ P @ A.T + K @ R_lidar @ K.T
+                P = A @ P @ A.T + (K * r_lidar) @ K.T
             else:
                 y = p - gnss_p[idx]
                 Pc = P[:, 0:3]
@@ -692,7 +693,7 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
                 K = np.linalg.solve(S, Pc.T).T
                 A = _I15.copy()
                 A[:, 0:3] -= K
-                P = A @ P @ A.T + K @ R_gnss @ K.T
+                P = A @ P @ A.T + (K * r_gnss) @ K.T
             innovations.append(y)
             S_list.append(S)
             dx = K @ y
@@ -702,9 +703,10 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
             ba = ba - dx[9:12]
             bw = bw - dx[12:15]
             if exact:
-                Gr = _I15.copy()
-                Gr[6:9, 6:9] = _left_jacobian1(dx[6:9])
-                P = Gr @ P @ Gr.T
+                # G_r P G_rᵀ with G_r = I except its attitude block J: only rows/columns 6:9 change
+                J = _left_jacobian1(dx[6:9])
+                P[6:9] = J @ P[6:9]
+                P[:, 6:9] = P[:, 6:9] @ J.T
             P = 0.5 * (P + P.T)
             updated = True
         if record_all:
