@@ -190,6 +190,10 @@ def eskf_discretisation() -> Derivation:
                  "check"),
         Equation("pv_block_first_order", first, sp.Matrix([[0, 0], [0, sa ** 2 * T]]),
                  r"its first-order part is the lecture's: only $\delta v$ receives $\sigma_a^2 T$", "check"),
+        Equation("constant_bias_BQB", (B_d[:, 0:6] * Q_k[0:6, 0:6] * B_d[:, 0:6].T).expand(),
+                 sp.diag(sp.zeros(3), sa ** 2 * T * R * R.T, sw ** 2 * T * sp.eye(3), sp.zeros(6)).expand(),
+                 r"constant bias ($\delta\dot b = 0$): $B$ keeps only its $n_a$, $n_\omega$ columns, "
+                 r"so $B Q_k B^T$ has no bias blocks and the bias variances can only shrink", "check"),
     )
     return Derivation(
         name="eskf_discretisation",
