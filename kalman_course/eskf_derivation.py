@@ -120,7 +120,7 @@ def eskf_error_dynamics() -> Derivation:
 
     equations = (
         Equation("convention", sp.Symbol(r"\check{R}"), sp.Symbol("R") * sp.Function("Exp")(sp.Symbol(r"\delta\theta")),
-                 r"error = nominal − true: $\delta p = \check p - p$, $\check R = R\,\mathrm{Exp}(\delta\theta)$, "
+                 r"error = nominal $-$ true: $\delta p = \check p - p$, $\check R = R\,\mathrm{Exp}(\delta\theta)$, "
                  r"$\delta b = \check b - b$", "definition"),
         Equation("velocity_error", dv_first, dv_lecture,
                  r"first-order term of $\dot{\check v} - \dot v$: "
@@ -146,7 +146,7 @@ def eskf_error_dynamics() -> Derivation:
     )
     return Derivation(
         name="eskf_error_dynamics",
-        title="ESKF: continuous error dynamics (error = nominal − true)",
+        title="ESKF: continuous error dynamics (error = nominal - true)",
         model=(r"Nominal kinematics $\dot{\check p} = \check v$, $\dot{\check v} = \check R(f - \check b_a) + g$, "
                r"$\dot{\check R} = \check R[\omega_m - \check b_\omega]_\times$; the true ones use the true biases "
                r"and the noises $n_a$, $n_\omega$ in the readings. The error $\delta x = [\delta p, \delta v, "
@@ -186,7 +186,7 @@ def eskf_discretisation() -> Derivation:
                  r"white-noise columns $\times T$ with per-sample variances $\sigma^2/T$, random-walk "
                  r"columns $\times\sqrt T$ with $\sigma_b^2$: $B Q_k B^T = T\,B_t Q_c B_t^T$", "check"),
         Equation("pv_block_exact", exact, sa ** 2 * sp.Matrix([[T ** 3 / 3, T ** 2 / 2], [T ** 2 / 2, T]]),
-                 r"per axis, the exact $\int_0^T \Phi L \sigma_a^2 L^T \Phi^T ds$ of the $\delta p$–$\delta v$ block",
+                 r"per axis, the exact $\int_0^T \Phi L \sigma_a^2 L^T \Phi^T ds$ of the $\delta p$--$\delta v$ block",
                  "check"),
         Equation("pv_block_first_order", first, sp.Matrix([[0, 0], [0, sa ** 2 * T]]),
                  r"its first-order part is the lecture's: only $\delta v$ receives $\sigma_a^2 T$", "check"),
@@ -228,7 +228,7 @@ def eskf_reset() -> Derivation:
 
     equations = (
         Equation("injection", sp.Symbol(r"\hat R"), sp.Symbol(r"\check R") * sp.Function("Exp")(-sp.Symbol(r"\hat{\delta\theta}")),
-                 r"injection for error = nominal − true: $\hat R = \check R\,\mathrm{Exp}(-\hat{\delta\theta})$", "definition"),
+                 r"injection for error = nominal $-$ true: $\hat R = \check R\,\mathrm{Exp}(-\hat{\delta\theta})$", "definition"),
         Equation("new_error", sp.Symbol(r"\delta\theta^+"),
                  sp.Function("Log")(sp.Function("Exp")(sp.Symbol(r"\delta\theta")) * sp.Function("Exp")(-sp.Symbol(r"\hat{\delta\theta}"))),
                  r"the error with respect to the corrected nominal state", "definition"),
@@ -238,7 +238,7 @@ def eskf_reset() -> Derivation:
     )
     return Derivation(
         name="eskf_reset",
-        title="ESKF: the reset Jacobian for error = nominal − true",
+        title="ESKF: the reset Jacobian for error = nominal - true",
         model=(r"After the update, $\hat{\delta\theta}$ is injected and the error reset to zero; the "
                r"covariance follows as $P \leftarrow G P G^T$ with $G = \mathrm{diag}(I, I, J, I, I)$."),
         equations=equations,
