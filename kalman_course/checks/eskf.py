@@ -72,9 +72,12 @@ def check_eskf_error_dynamics(error_dynamics):
         flip[3:6, 6:9] *= -1
         theta = ref.copy()
         theta[6:9, 6:9] *= -1
+        # first the finite-difference test: I + F_t T must be the Jacobian of one nominal step
+        # (w.r.t. an injected error) up to the second-order terms ½ F_t² T²
         T = 1e-3
         J = _fd_transition(x, f, w, T, g)
         fd_err = np.abs(J - (np.eye(15) + got * T)).max()
+        tol = np.abs(ref @ ref).max() * T * T + 1e-7
         expect_close(got, ref, "F_t", atol=1e-10, mistakes=[
             (nav, "navigation-frame specific force: the δv–δθ block is −R[a]× with a = f − b_a in the "
                   "BODY frame, not −[R a]×"),
@@ -82,7 +85,10 @@ def check_eskf_error_dynamics(error_dynamics):
             (flip, "sign of the δv–δθ block: with Ř = R Exp(δθ), δv̇ = −R[a]× δθ + ..."),
             (theta, "sign of the δθ–δθ block: δθ̇ = −[ω − b_ω]× δθ + ..."),
         ], hint=f"I + F_t T differs from a finite-difference Jacobian of one IMU step by {fd_err:.2e} at "
-                f"T = 1 ms (a correct F_t gives about 1e-5); compare block by block with the lecture")
+                f"T = 1 ms (allowed: {tol:.1e}); compare block by block with the lecture")
+        if fd_err > tol:
+            raise CheckFailed(f"I + F_t T is not the Jacobian of one IMU step (finite-difference mismatch "
+                              f"{fd_err:.2e} > {tol:.1e})")
 
 
 @check("eskf_noise_jacobian")
