@@ -1,0 +1,538 @@
+"""Tuning and consistency (chapter 09): NEES/NIS statistics, Monte Carlo, sensitivity, gating.
+
+A filter is *consistent* when its errors are as large as its covariance says: the NEES
+:math:`e^T P^{-1} e` (e = estimate − truth) and the NIS :math:`\\nu^T S^{-1} \\nu` are then
+chi-square with as many degrees of freedom as the vector has components. This module
+builds the chapter's experiments on top of :mod:`kalman_course.metrics` (the statistics
+and their chi-square bounds) and :mod:`kalman_course.eskf` (the filter):
+
+- :func:`summarise` — mean of a NEES/NIS record, its two-sided bounds and the share of
+  single values inside the per-step bounds, as one :class:`Consistency` record;
+- :func:`verdict` — "consistent", "overconfident" (P or S too small) or "underconfident";
+- :func:`monte_carlo` — the ESKF on the synthetic IMU trajectory (exact truth), n seeded
+  runs, 15-state NEES and 6-dof NIS per step;
+- :func:`scaled_config` and :func:`sensitivity` — the KITTI ESKF over several noise settings;
+- :func:`gate`, :func:`inject_outliers` and :func:`run_gated` — chi-square innovation
+  gating against seeded map-matching failures in the lidar poses;
+- :func:`simple_update`, :func:`joseph_update`, :func:`symmetrise` and
+  :func:`covariance_health` — the numerical-failure gallery.
+
+Everything random comes from ``numpy.random.default_rng(seed)``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import types
+from dataclasses import dataclass
+
+import numpy as np
+
+from kalman_course import eskf, metrics, so3
+from kalman_course.data import imu_trajectory, simulate_lidar_poses
+from kalman_course.eskf_config import EskfConfig, load_config
+
+__all__ = [
+    "Consistency", "summarise", "verdict", "VERDICTS",
+    "MonteCarloResult", "monte_carlo", "full_state_error",
+    "scaled_config", "SensitivityRow", "sensitivity",
+    "gate_threshold", "gate", "inject_outliers", "GatedRun", "run_gated",
+    "simple_update", "joseph_update", "symmetrise", "covariance_health", "roundoff_experiment",
+]
+
+#: The three answers of :func:`verdict`.
+VERDICTS = ("consistent", "overconfident", "underconfident")
+_POSE_IDX = np.array([0, 1, 2, 6, 7, 8])
+
+
+# ---------------------------------------------------------------------------------------
+# Summaries and verdicts
+# ---------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Consistency:
+    """A NEES or NIS record summarised against its chi-square bounds.
+
+    Attributes
+    ----------
+    dof : int
+        Degrees of freedom of one value.
+    n_runs : int
+        How many independent values each averaged value is made of (1 for a single run).
+    mean : float
+        Mean of the record (NaN entries skipped).
+    mean_lo, mean_hi : float
+        Two-sided bounds for that mean, treating every value as independent
+        (``chi2_bounds(dof, n_values * n_runs)``). Only for white sequences such as the NIS
+        of one run is this the right test; a NEES record over time is correlated.
+    lo, hi : float
+        Two-sided bounds for one (run-averaged) value, ``chi2_bounds(dof, n_runs)``.
+    share_inside : float
+        Share of the values inside [lo, hi]; about ``confidence`` for a consistent filter.
+    confidence : float
+    """
+
+    dof: int
+    n_runs: int
+    mean: float
+    mean_lo: float
+    mean_hi: float
+    lo: float
+    hi: float
+    share_inside: float
+    confidence: float
+
+
+def summarise(values, dof: int, n_runs: int = 1, confidence: float = 0.95) -> Consistency:
+    """Summarise NEES/NIS ``values`` (any shape; NaN skipped) of ``dof`` degrees of freedom.
+
+    Parameters
+    ----------
+    values : array_like
+        One value per step, each already averaged over ``n_runs`` runs if n_runs > 1.
+    dof : int
+        Dimension of the vector each value was computed from.
+    n_runs : int
+        Number of runs averaged into each value.
+    confidence : float
+        Mass of the two-sided intervals.
+    """
+    v = np.asarray(values, dtype=float).ravel()
+    v = v[~np.isnan(v)]
+    if v.size == 0:
+        raise ValueError("values must contain at least one non-NaN value")
+    lo, hi = metrics.chi2_bounds(dof, n_runs, confidence)
+    mlo, mhi = metrics.chi2_bounds(dof, int(n_runs) * v.size, confidence)
+    return Consistency(int(dof), int(n_runs), float(np.mean(v)), mlo, mhi, lo, hi,
+                       metrics.share_inside(v, lo, hi), float(confidence))
+
+
+def verdict(values, dof: int, confidence: float = 0.95) -> str:
+    """Judge a white NIS (or independent NEES) record by its mean and the two-sided bounds.
+
+    The mean of N independent χ²(dof) values, times N, is χ²(N·dof). Above the upper bound
+    the errors are larger than the filter believes: it is **overconfident** (P or S too
+    small: raise Q or R). Below the lower bound it is **underconfident**. Inside:
+    **consistent**.
+
+    Returns
+    -------
+    str
+        One of :data:`VERDICTS`.
+    """
+    s = summarise(values, dof, 1, confidence)
+    if s.mean > s.mean_hi:
+        return "overconfident"
+    if s.mean < s.mean_lo:
+        return "underconfident"
+    return "consistent"
+
+
+# ---------------------------------------------------------------------------------------
+# Monte Carlo on the synthetic IMU trajectory
+# ---------------------------------------------------------------------------------------
+
+def full_state_error(result, truth, k) -> np.ndarray:
+    """15-state error nominal − true, [δp, δv, δθ, δb_a, δb_ω], shape (K, 15).
+
+    Parameters
+    ----------
+    result : eskf.EskfResult
+    truth : data.ImuScenario
+        Exact truth (position, velocity, rotation and biases at every sample).
+    k : array_like of int, shape (K,)
+        Index into ``truth`` of each row of ``result``.
+    """
+    k = np.asarray(k)
+    dth = so3.log(np.swapaxes(truth.rotation[k], -1, -2) @ result.rotation)
+    return np.concatenate([result.position - truth.position[k], result.velocity - truth.velocity[k], dth,
+                           result.accel_bias - truth.accel_bias[k], result.gyro_bias - truth.gyro_bias[k]],
+                          axis=1)
+
+
+@dataclass(frozen=True)
+class MonteCarloResult:
+    """Per-step NEES and NIS of n seeded runs of the ESKF on the synthetic trajectory.
+
+    Attributes
+    ----------
+    t : numpy.ndarray, shape (K,)
+        Update times, s.
+    nees : numpy.ndarray, shape (n_runs, K)
+        15-state NEES after each update.
+    nees_pose : numpy.ndarray, shape (n_runs, K)
+        6-dof pose NEES ([δp, δθ]) after each update.
+    nis : numpy.ndarray, shape (n_runs, K)
+        6-dof NIS of each lidar innovation.
+    position_error : numpy.ndarray, shape (n_runs, K)
+        |p̂ − p|, m.
+    position_std : numpy.ndarray, shape (n_runs, K)
+        sqrt(trace of the δp block of P), m.
+    """
+
+    t: np.ndarray
+    nees: np.ndarray
+    nees_pose: np.ndarray
+    nis: np.ndarray
+    position_error: np.ndarray
+    position_std: np.ndarray
+
+    @property
+    def n_runs(self) -> int:
+        return int(self.nees.shape[0])
+
+
+def _synthetic_config(scenario, process_scale: float, lidar_sigma, lidar_attitude_deg) -> EskfConfig:
+    base = load_config("kitti_lidar")
+    return base.replace(
+        process__accel_noise=scenario.accel_noise_density * process_scale,
+        process__gyro_noise=scenario.gyro_noise_density * process_scale,
+        process__accel_bias_noise=scenario.accel_bias_density,
+        process__gyro_bias_noise=scenario.gyro_bias_density,
+        observation__lidar_position=lidar_sigma,
+        observation__lidar_attitude=np.deg2rad(lidar_attitude_deg))
+
+
+def monte_carlo(n_runs: int = 20, seed: int = 0, duration: float = 20.0, *, process_scale: float = 1.0,
+                lidar_sigma: float = 0.2, lidar_attitude_deg: float = 0.3, lidar_every: int = 10,
+                ) -> MonteCarloResult:
+    """Run the ESKF ``n_runs`` times on independently seeded synthetic IMU trajectories.
+
+    Run i uses seed ``seed + i`` for everything it draws: the true biases at t = 0 and the
+    initial error (both from the filter's prior), the IMU noise
+    (:func:`kalman_course.data.imu_trajectory`) and the lidar pose noise
+    (:func:`kalman_course.data.simulate_lidar_poses`, every ``lidar_every``-th sample). The
+    filter uses the simulator's own noise densities times ``process_scale`` (1 gives a
+    correctly tuned filter), so its NEES should be χ²(15).
+    """
+    if n_runs < 1:
+        raise ValueError(f"n_runs must be at least 1, got {n_runs!r}")
+    rows = {"nees": [], "nees_pose": [], "nis": [], "err": [], "std": []}
+    t_out = None
+    for i in range(n_runs):
+        rng = np.random.default_rng(seed + i)
+        cfg0 = load_config("kitti_lidar")
+        prior = cfg0.prior_std
+        ba0, bw0 = prior[9:12] * rng.standard_normal(3), prior[12:15] * rng.standard_normal(3)
+        dx0 = prior * rng.standard_normal(15)
+        sc = imu_trajectory(seed + i, duration=duration, accel_bias0=ba0, gyro_bias0=bw0)
+        cfg = _synthetic_config(sc, process_scale, lidar_sigma, lidar_attitude_deg)
+        sel = np.arange(lidar_every, len(sc.t), lidar_every)
+        poses = types.SimpleNamespace(t=sc.t[sel], position=sc.position[sel], rotation=sc.rotation[sel])
+        lidar = simulate_lidar_poses(poses, seed + i, lidar_sigma, lidar_attitude_deg)
+        # nominal = true + error (error = nominal − true)
+        x0 = eskf.NominalState(sc.position[0] + dx0[0:3], sc.velocity[0] + dx0[3:6],
+                               sc.rotation[0] @ so3.exp(dx0[6:9]), ba0 + dx0[9:12], bw0 + dx0[12:15])
+        res = eskf.run(sc.imu, x0, cfg, sc.gravity, lidar=lidar)
+        k = np.searchsorted(sc.t, res.t - 1e-9)
+        e = full_state_error(res, sc, k)
+        rows["nees"].append(metrics.nees(e, res.P))
+        ep = e[:, _POSE_IDX]
+        rows["nees_pose"].append(metrics.nees(ep, res.P[:, _POSE_IDX][:, :, _POSE_IDX]))
+        rows["nis"].append(metrics.nis(np.array(res.innovation), np.array(res.S)))
+        rows["err"].append(np.linalg.norm(e[:, 0:3], axis=1))
+        rows["std"].append(np.sqrt(np.trace(res.P[:, 0:3, 0:3], axis1=1, axis2=2)))
+        t_out = res.t
+    return MonteCarloResult(t_out, *(np.array(rows[k]) for k in ("nees", "nees_pose", "nis", "err", "std")))
+
+
+# ---------------------------------------------------------------------------------------
+# Sensitivity of the KITTI ESKF to its noise settings
+# ---------------------------------------------------------------------------------------
+
+def scaled_config(config="kitti_lidar", q_factor: float = 1.0, r_factor: float = 1.0) -> EskfConfig:
+    """The configuration with Q multiplied by ``q_factor`` and R by ``r_factor``.
+
+    Q scales the white-noise densities of the accelerometer and gyroscope (densities × √q);
+    R scales the lidar and GNSS variances (standard deviations × √r). Bias random walks and
+    the prior are left alone.
+    """
+    cfg = config if isinstance(config, EskfConfig) else load_config(config)
+    if q_factor <= 0 or r_factor <= 0:
+        raise ValueError(f"factors must be positive, got q_factor={q_factor!r}, r_factor={r_factor!r}")
+    q, r = float(np.sqrt(q_factor)), float(np.sqrt(r_factor))
+    d, lid = cfg.process_density, cfg.lidar_std
+    return cfg.replace(process__accel_noise=d[0] * q, process__gyro_noise=d[1] * q,
+                       observation__lidar_position=lid[0] * r, observation__lidar_attitude=lid[3] * r,
+                       observation__gnss_position=cfg.gnss_std * r)
+
+
+@dataclass(frozen=True)
+class SensitivityRow:
+    """One setting of :func:`sensitivity`.
+
+    Attributes
+    ----------
+    label : str
+    q_factor, r_factor : float
+    ape_position : float
+        Position APE (RMSE), m.
+    ape_attitude_deg : float
+        Attitude APE (RMS angle), degrees.
+    nees_pose : float
+        Mean 6-dof pose NEES.
+    nees_share : float
+        Share of steps whose pose NEES lies inside the 95 % bounds of χ²(6).
+    nis : float
+        Mean 6-dof NIS.
+    verdict : str
+        :func:`verdict` of the NIS record.
+    """
+
+    label: str
+    q_factor: float
+    r_factor: float
+    ape_position: float
+    ape_attitude_deg: float
+    nees_pose: float
+    nees_share: float
+    nis: float
+    verdict: str
+
+
+def sensitivity(excerpt, settings, config="kitti_lidar", lidar=None) -> list[SensitivityRow]:
+    """Run the ESKF on a KITTI excerpt for each setting (label, q_factor, r_factor).
+
+    Parameters
+    ----------
+    excerpt : KittiExcerpt
+    settings : iterable of (str, float, float)
+    config : EskfConfig or str
+        The configuration the factors scale.
+    lidar : LidarData, optional
+        Pose observations (default: the excerpt's shipped draw).
+    """
+    lidar = excerpt.lidar if lidar is None else lidar
+    k0, s0 = excerpt.initial_state()
+    lo, hi = metrics.chi2_bounds(6)
+    rows = []
+    for label, qf, rf in settings:
+        res = eskf.run(excerpt.imu, s0, scaled_config(config, qf, rf), excerpt.gravity, lidar=lidar, start=k0)
+        m = eskf.evaluate(res.t, res.position, res.rotation, excerpt.truth, res.P)
+        nis = metrics.nis(np.array(res.innovation), np.array(res.S))
+        rows.append(SensitivityRow(label, float(qf), float(rf), m["ape_position"], m["ape_attitude_deg"],
+                                   m["nees_pose"], metrics.share_inside(m["nees"], lo, hi),
+                                   float(np.mean(nis)), verdict(nis, 6)))
+    return rows
+
+
+# ---------------------------------------------------------------------------------------
+# Innovation gating
+# ---------------------------------------------------------------------------------------
+
+def gate_threshold(dof: int, confidence: float = 0.99) -> float:
+    """The NIS above which an innovation of ``dof`` components is rejected: χ²_dof quantile."""
+    return metrics.chi2_ppf(confidence, dof)
+
+
+def gate(innovation, S, confidence: float = 0.99) -> bool:
+    """Chi-square gate: True (accept) when the NIS νᵀ S⁻¹ ν is at most the χ²_m quantile.
+
+    Parameters
+    ----------
+    innovation : array_like, shape (m,)
+    S : array_like, shape (m, m)
+        Innovation covariance, symmetric positive definite.
+    confidence : float
+        Probability that a consistent filter accepts a correct observation.
+    """
+    value = metrics.nis(innovation, S)
+    return bool(value <= gate_threshold(np.size(innovation), confidence))
+
+
+def inject_outliers(lidar, seed: int, n_bursts: int = 3, burst_length: int = 5, offset: float = 3.0,
+                    yaw_deg: float = 3.0, skip: int = 20):
+    """Turn a few bursts of lidar poses into map-matching failures.
+
+    The observations are split after the first ``skip`` into ``n_bursts`` equal slots; in
+    each, a burst of ``burst_length`` consecutive poses starts at a seeded position, and all
+    its poses are moved by ``offset`` metres in one seeded horizontal direction and turned
+    by ±``yaw_deg`` degrees about the vertical (as when the scan is matched to the wrong
+    place of the map). Draws from ``default_rng(seed)``, in order: slot positions
+    (n_bursts integers), directions (n_bursts angles), yaw signs (n_bursts).
+
+    Returns
+    -------
+    lidar : LidarData
+        A copy with the corrupted poses.
+    outlier : numpy.ndarray of bool, shape (K,)
+        True for each corrupted pose.
+    """
+    K = len(lidar.t)
+    slot = (K - skip) // max(n_bursts, 1)
+    if n_bursts < 1 or burst_length < 1 or slot < burst_length:
+        raise ValueError(f"cannot place {n_bursts} bursts of {burst_length} in {K} poses after skipping {skip}")
+    rng = np.random.default_rng(seed)
+    starts = skip + slot * np.arange(n_bursts) + rng.integers(0, slot - burst_length + 1, size=n_bursts)
+    angles = rng.uniform(0.0, 2.0 * np.pi, size=n_bursts)
+    signs = rng.choice([-1.0, 1.0], size=n_bursts)
+    position = np.array(lidar.position, dtype=float)
+    rotation = np.array(lidar.rotation, dtype=float)
+    outlier = np.zeros(K, dtype=bool)
+    for s, a, sg in zip(starts, angles, signs):
+        idx = np.arange(s, s + burst_length)
+        outlier[idx] = True
+        position[idx] += offset * np.array([np.cos(a), np.sin(a), 0.0])
+        rotation[idx] = so3.exp(np.array([0.0, 0.0, sg * np.deg2rad(yaw_deg)])) @ rotation[idx]
+    quaternion = so3.matrix_to_quat(rotation)
+    return dataclasses.replace(lidar, position=position, quaternion=quaternion,
+                               rotation=so3.quat_to_matrix(quaternion)), outlier
+
+
+@dataclass(frozen=True)
+class GatedRun:
+    """Output of :func:`run_gated`.
+
+    Attributes
+    ----------
+    result : eskf.EskfResult
+        The filter, with a row at every lidar time inside the run (prior where rejected).
+    t : numpy.ndarray, shape (K,)
+        Times of the lidar poses inside the run.
+    index : numpy.ndarray of int, shape (K,)
+        Their index into the lidar record.
+    accepted : numpy.ndarray of bool, shape (K,)
+        Whether each pose was used.
+    innovation : numpy.ndarray, shape (K, 6)
+        Innovation of every pose against the filter's prior at its time.
+    S : numpy.ndarray, shape (K, 6, 6)
+        Its covariance.
+    nis : numpy.ndarray, shape (K,)
+    threshold : float
+        The gate (inf for an ungated run).
+    reruns : int
+        How many batch runs the exact sequential decision took.
+    """
+
+    result: object
+    t: np.ndarray
+    index: np.ndarray
+    accepted: np.ndarray
+    innovation: np.ndarray
+    S: np.ndarray
+    nis: np.ndarray
+    threshold: float
+    reruns: int
+
+
+def run_gated(excerpt, lidar=None, config="kitti_lidar", confidence: float | None = 0.99) -> GatedRun:
+    """Run the ESKF on an excerpt with lidar poses, rejecting those that fail the χ² gate.
+
+    Each pose is tested against the filter's prior at its time, as a sequential gated
+    filter would. The fast batch runner :func:`kalman_course.eskf.run` has no gate, so the
+    sequential decision is found by re-running it: start by accepting every pose, find the
+    first pose whose gate decision disagrees with that choice, flip it (and the disagreeing
+    poses right after it) and run again. A choice that agrees with every decision it leads
+    to is the sequential filter's; the decisions up to the first flipped pose cannot change,
+    so this ends after at most K runs, in practice one more than the number of bursts of
+    rejected poses.
+
+    Parameters
+    ----------
+    excerpt : KittiExcerpt
+    lidar : LidarData, optional
+        Poses (default: the excerpt's own); for example from :func:`inject_outliers`.
+    config : EskfConfig or str
+    confidence : float or None
+        Gate confidence; None accepts every pose (the ungated filter).
+    """
+    lidar = excerpt.lidar if lidar is None else lidar
+    cfg = config if isinstance(config, EskfConfig) else load_config(config)
+    k0, s0 = excerpt.initial_state()
+    t_imu = excerpt.imu.t
+    lt = np.asarray(lidar.t, dtype=float)
+    index = np.nonzero((lt > t_imu[k0]) & (lt <= t_imu[-1]))[0]
+    times = lt[index]
+    p_obs = np.asarray(lidar.position, dtype=float)[index]
+    R_obs = np.asarray(lidar.rotation, dtype=float)[index]
+    R_noise = np.diag(cfg.lidar_std ** 2)
+    threshold = np.inf if confidence is None else gate_threshold(6, confidence)
+    accepted = np.ones(len(index), dtype=bool)
+    reruns = 0
+    while True:
+        used = types.SimpleNamespace(t=times[accepted], position=p_obs[accepted], rotation=R_obs[accepted])
+        res = eskf.run(excerpt.imu, s0, cfg, excerpt.gravity, lidar=used, start=k0, output_times=times)
+        reruns += 1
+        rows = np.searchsorted(res.t, times - 1e-9)
+        innovation = np.empty((len(index), 6))
+        S = np.empty((len(index), 6, 6))
+        if np.any(accepted):
+            innovation[accepted] = np.array(res.innovation)
+            S[accepted] = np.array(res.S)
+        rej = np.nonzero(~accepted)[0]
+        if rej.size:
+            r = rows[rej]
+            innovation[rej, 0:3] = res.position[r] - p_obs[rej]
+            innovation[rej, 3:6] = so3.log(np.swapaxes(R_obs[rej], -1, -2) @ res.rotation[r])
+            S[rej] = res.P[r][:, _POSE_IDX][:, :, _POSE_IDX] + R_noise
+        nis = metrics.nis(innovation, S)
+        wrong = (nis <= threshold) != accepted
+        if not np.any(wrong):
+            return GatedRun(res, times, index, accepted, innovation, S, nis, float(threshold), reruns)
+        # flip the first disagreement (certainly right) and the ones right after it (a burst of
+        # outliers, usually right too; any wrong guess is corrected by a later run)
+        first = int(np.argmax(wrong))
+        last = first
+        while last + 1 < len(wrong) and wrong[last + 1]:
+            last += 1
+        accepted[first:last + 1] = ~accepted[first:last + 1]
+
+
+# ---------------------------------------------------------------------------------------
+# Numerical failures of the covariance update and their repair
+# ---------------------------------------------------------------------------------------
+
+def simple_update(P, K, G) -> np.ndarray:
+    """The short form P̂ = (I − K G) P̌: right only for the optimal gain, and not symmetrised."""
+    P, K, G = (np.asarray(a, dtype=float) for a in (P, K, G))
+    return (np.eye(P.shape[0]) - K @ G) @ P
+
+
+def joseph_update(P, K, G, R) -> np.ndarray:
+    """Joseph form P̂ = (I − K G) P̌ (I − K G)ᵀ + K R Kᵀ: valid for any gain, PSD by construction."""
+    P, K, G, R = (np.asarray(a, dtype=float) for a in (P, K, G, R))
+    A = np.eye(P.shape[0]) - K @ G
+    return A @ P @ A.T + K @ R @ K.T
+
+
+def symmetrise(P) -> np.ndarray:
+    """½ (P + Pᵀ): removes the antisymmetric part that round-off or a wrong form left."""
+    P = np.asarray(P, dtype=float)
+    return 0.5 * (P + P.T)
+
+
+def covariance_health(P) -> tuple[float, float]:
+    """(asymmetry max|P − Pᵀ| / max|P|, smallest eigenvalue of the symmetric part ½(P + Pᵀ))."""
+    P = np.asarray(P, dtype=float)
+    scale = max(float(np.max(np.abs(P))), 1e-300)
+    return float(np.max(np.abs(P - P.T)) / scale), float(np.linalg.eigvalsh(symmetrise(P)).min())
+
+
+def roundoff_experiment(dtype=np.float64, form: str = "simple", symmetric: bool = False, steps: int = 200,
+                        T: float = 0.1, q: float = 1e-6, r: float = 1e-4, p0: float = 1e4) -> tuple[float, float]:
+    """A 1-D constant-velocity filter with precise position fixes, computed in ``dtype``.
+
+    A vague prior (variance ``p0``) meets fixes of variance ``r`` over ``steps`` steps with
+    the optimal gain; the covariance update is ``form`` ("simple" or "joseph"), optionally
+    followed by symmetrisation. Returns the worst asymmetry and the smallest eigenvalue seen
+    (see :func:`covariance_health`); a negative eigenvalue means P lost positive definiteness.
+    """
+    if form not in ("simple", "joseph"):
+        raise ValueError(f"form must be 'simple' or 'joseph', got {form!r}")
+    F = np.array([[1.0, T], [0.0, 1.0]], dtype=dtype)
+    Q = (q * np.array([[T ** 3 / 3, T ** 2 / 2], [T ** 2 / 2, T]])).astype(dtype)
+    G = np.array([[1.0, 0.0]], dtype=dtype)
+    R = np.array([[r]], dtype=dtype)
+    I = np.eye(2, dtype=dtype)
+    P = np.diag([p0, p0]).astype(dtype)
+    worst_asym, worst_eig = 0.0, np.inf
+    for _ in range(steps):
+        P = (F @ P @ F.T + Q).astype(dtype)
+        K = (P @ G.T / (G @ P @ G.T + R)).astype(dtype)
+        A = (I - K @ G).astype(dtype)
+        P = (A @ P if form == "simple" else A @ P @ A.T + K @ R @ K.T).astype(dtype)
+        if symmetric:
+            P = (0.5 * (P + P.T)).astype(dtype)
+        asym, eig = covariance_health(P.astype(float))
+        worst_asym, worst_eig = max(worst_asym, asym), min(worst_eig, eig)
+    return worst_asym, worst_eig
