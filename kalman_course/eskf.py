@@ -530,6 +530,9 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
     Returns
     -------
     EskfResult
+        One row per observation or output time (after the update where there is one);
+        IMU samples after the last such time are not integrated. Pass ``output_times`` to
+        get states where no observation is used.
     """
     cfg = config if isinstance(config, EskfConfig) else load_config(config)
     x0 = initial if isinstance(initial, NominalState) else NominalState.from_nav(initial)
