@@ -86,3 +86,14 @@ from kalman_course.checks.eskf import (  # noqa: E402
 )
 
 __all__ += ["nominal_ekf_observation", "nominal_ekf_jacobian"]
+
+# chapter 09
+from kalman_course.checks.consistency import (  # noqa: E402
+    check_chi2_interval as chi2_interval,
+    check_consistency_nees as consistency_nees,
+    check_consistency_nis as consistency_nis,
+    check_consistency_verdict as consistency_verdict,
+    check_innovation_gate as innovation_gate,
+)
+
+__all__ += ["consistency_nees", "consistency_nis", "chi2_interval", "innovation_gate", "consistency_verdict"]
