@@ -889,17 +889,25 @@ _BUILDERS: tuple[Callable[[], Derivation], ...] = (
 )
 
 
+def _all_builders() -> tuple:
+    """This module's builders, then the ESKF's (imported late: that module builds on this one)."""
+    from kalman_course.eskf_derivation import BUILDERS as eskf_builders
+
+    return _BUILDERS + tuple(eskf_builders)
+
+
 def derivations() -> dict[str, Derivation]:
     """Return every derivation of the course, keyed by name, in course order."""
-    return {d.name: d for d in (build() for build in _BUILDERS)}
+    return {d.name: d for d in (build() for build in _all_builders())}
 
 
 def derivation(name: str) -> Derivation:
     """Return the derivation called ``name`` (``KeyError`` lists the known names)."""
-    for build in _BUILDERS:
+    builders = _all_builders()
+    for build in builders:
         if build.__name__ == name:
             return build()
-    raise KeyError(f"unknown derivation {name!r}; known: {[b.__name__ for b in _BUILDERS]}")
+    raise KeyError(f"unknown derivation {name!r}; known: {[b.__name__ for b in builders]}")
 
 
 # --------------------------------------------------------------------------------------
