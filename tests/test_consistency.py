@@ -136,3 +136,15 @@ def test_roundoff_experiment():
     assert C.roundoff_experiment(np.float64, "simple", symmetric=True)[0] == 0.0
     with pytest.raises(ValueError):
         C.roundoff_experiment(form="long")
+
+
+def test_bench_smoke():
+    """A tiny part of the benchmark report: the KF timing runs and one excerpt's accuracy rows."""
+    from kalman_course import bench
+    k = bench.kf_speed(n_steps=50, repeats=1)
+    assert k["run_kf"] > 0 and k["calls"] > 0
+    rows = bench.excerpt_accuracy("cruise")
+    lidar, raw = rows["ESKF + lidar (10 Hz)"], rows["raw lidar poses (σ 0.2 m, 0.3°)"]
+    assert lidar["pos"] < 0.4 * raw["pos"] and lidar["att"] < 0.3 * raw["att"]
+    assert rows["ESKF + GNSS (1 Hz)"]["pos"] < 0.7 * rows["raw GNSS fixes (σ 1 m)"]["pos"]
+    assert set(rows) >= {"ORB-SLAM2 (SE(3)-aligned)", "S-PTAM (SE(3)-aligned)"}
