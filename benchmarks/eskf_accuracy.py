@@ -11,7 +11,7 @@ Run ``python benchmarks/eskf_accuracy.py`` (about half a minute). It prints Mark
    model, the reset Jacobian off, and ORB-SLAM2 / S-PTAM on the same frames (SE(3)-aligned
    per excerpt); then the ratios to the raw lidar poses against the acceptance bars;
 3. the GNSS variant (1 Hz, σ = 1 m): fused position RMSE (at the 10 Hz truth times) vs the
-   raw fixes, and a 30 s GNSS outage in the turns excerpt (peak error over the seeds);
+   raw fixes, and 30 s GNSS outages in the turns excerpt (peak error over the seeds);
 4. all of sequence 00: ATE (SE(3)-aligned cam0 positions, as for the SLAM anchors) with
    lidar and with GNSS, with and without the interpolated-IMU flags;
 5. the run time of the whole sequence with lidar, median of 5;
@@ -40,7 +40,7 @@ from kalman_course.trajectory import ate_rmse, umeyama
 
 EXCERPTS = ("cruise", "turns", "stop_go")
 EXTRA_SEEDS = (101, 202, 303, 404)
-OUTAGE = (325.0, 355.0)            # tau, s: 30 s without GNSS inside the turns excerpt
+OUTAGES = ((325.0, 355.0), (335.0, 365.0))   # tau, s: 30 s without GNSS inside the turns excerpt
 BARS = {"ape_position": 0.4, "ape_attitude_deg": 0.3, "rpe_position": 0.4, "rpe_attitude_deg": 0.4}
 METRICS = ("ape_position", "ape_attitude_deg", "rpe_position", "rpe_attitude_deg", "nees_pose")
 
@@ -247,11 +247,18 @@ def main() -> int:
         fused, raw, _, _ = gnss_rows(name, cfg_g)
         ok &= fused <= 0.7 * raw
         print(f"| {name} | {fused:.3f} | {raw:.3f} | {fused / raw:.3f} |")
-    fused, raw, peak, sigma = gnss_rows("turns", cfg_g, outage=OUTAGE)
-    print(f"\nturns with no GNSS for tau {OUTAGE[0]:.0f}–{OUTAGE[1]:.0f} s: peak position error over the "
-          f"seeds {peak:.2f} m, where the filter's own position σ was {sigma:.2f} m (RMSE over the "
-          f"excerpt {fused:.3f} m). Without fixes the filter dead-reckons from a GNSS-only attitude "
-          f"(about 1° of heading and 0.4° of tilt error at the outage's start).\n")
+    print()
+    print("| 30 s outage in turns (tau, s) | GNSS fixes before it | peak position error over the seeds (m) "
+          "| filter's own σ there (m) | RMSE over the excerpt (m) |")
+    print("|---|---|---|---|---|")
+    for outage in OUTAGES:
+        fused, raw, peak, sigma = gnss_rows("turns", cfg_g, outage=outage)
+        print(f"| {outage[0]:.0f}–{outage[1]:.0f} | {outage[0] - 310.0:.0f} s | {peak:.2f} | {sigma:.2f} | {fused:.3f} |")
+    print("\nWithout fixes the filter dead-reckons from an attitude that GNSS alone observes only "
+          "slowly (through how position errors grow): after 15 s of fixes about 1° of heading and "
+          "0.4° of tilt error remain, and 0.4° of tilt alone is 0.07 m/s² of false acceleration. "
+          "Ten seconds more of fixes before the outage cut the peak by more than half. The filter's σ "
+          "grows with the error (it stays consistent).\n")
 
     print("## Whole sequence 00 (ATE, SE(3)-aligned cam0 positions)\n")
     print("| estimate | ATE (m) |")
