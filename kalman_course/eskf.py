@@ -429,14 +429,17 @@ class EskfResult:
 
 
 def _exp_batch(phi: np.ndarray) -> np.ndarray:
-    """Rodrigues for a stack (n, 3) without validation: cos θ I + A [φ]× + B φφᵀ."""
+    """Rodrigues for a stack (n, 3) without validation: cos θ I + A [φ]× + B φφᵀ.
+
+    A = sin θ/θ and B = (1 − cos θ)/θ² lose relative accuracy for tiny θ, but B multiplies
+    φφᵀ = O(θ²), so the result stays exact to round-off (θ = 0 gives the identity).
+    """
     th2 = np.einsum("ij,ij->i", phi, phi)
     th = np.sqrt(th2)
-    small = th < 1e-4
-    ts = np.where(small, 1.0, th)
-    A = np.where(small, 1.0 - th2 / 6.0, np.sin(ts) / ts)
-    B = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(ts)) / (ts * ts))
-    C = 1.0 - B * th2                                   # = cos θ
+    ts = np.maximum(th, 1e-150)
+    A = np.sin(ts) / ts
+    C = np.cos(th)
+    B = (1.0 - C) / (ts * ts)
     Ap = A[:, None] * phi
     E = B[:, None, None] * (phi[:, :, None] * phi[:, None, :])
     E[:, 0, 0] += C
@@ -591,6 +594,11 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
     flags = step_flag[imu_step]
     dt_nodes = np.diff(t_nodes)
     w_mid = 0.5 * (w_nodes[:-1] + w_nodes[1:])
+    # [ω̄ − b_ω]× = [ω̄]× − [b_ω]× and [f − b_a]× = [f]× − [b_a]×: the state-free parts once
+    hat_w = _hat_batch(w_mid)
+    hat_f = _hat_batch(f_nodes)
+    dt_col = dt_nodes[:, None]
+    dt_mat = dt_nodes[:, None, None]
     ev_node = np.searchsorted(t_nodes, ev_t - tol)
 
     # per-step diagonal of B Q Bᵀ (density² · T); bias blocks zero for a constant bias
@@ -608,6 +616,7 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
     ba = np.array(x0.accel_bias, dtype=float)
     bw = np.array(x0.gyro_bias, dtype=float)
     P = initial_covariance(cfg) if P0 is None else np.array(P0, dtype=float)
+    hat_ba, hat_bw = so3.hat(ba), so3.hat(bw)
     R_lidar = np.diag(cfg.lidar_std ** 2)
     R_gnss = np.eye(3) * cfg.gnss_std ** 2
     r_lidar, r_gnss = np.diag(R_lidar).copy(), np.diag(R_gnss).copy()
@@ -636,7 +645,9 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
         if n > 0:
             sl = slice(node, target)
             dt = dt_nodes[sl]
-            E = _exp_batch((w_mid[sl] - bw) * dt[:, None])
+            dtc = dt_col[sl]
+            dt3 = dt_mat[sl]
+            E = _exp_batch((w_mid[sl] - bw) * dtc)
             Rs = np.empty((n + 1, 3, 3))
             Rs[0] = R
             for i in range(n):
@@ -644,22 +655,22 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
             a_b = f_nodes[node:target + 1] - ba
             acc = np.einsum("kij,kj->ki", Rs, a_b) + g
             am = 0.5 * (acc[:-1] + acc[1:])
-            dv = am * dt[:, None]
+            dv = am * dtc
             vs = np.empty((n + 1, 3))
             vs[0] = v
             np.cumsum(dv, axis=0, out=vs[1:])
             vs[1:] += v
-            p_new = p + np.sum(vs[:-1] * dt[:, None] + 0.5 * dv * dt[:, None], axis=0)
+            p_new = p + np.sum((vs[:-1] + 0.5 * dv) * dtc, axis=0)
             if record_all:
-                all_p[node + 1:target + 1] = p + np.cumsum(vs[:-1] * dt[:, None] + 0.5 * dv * dt[:, None], axis=0)
+                all_p[node + 1:target + 1] = p + np.cumsum((vs[:-1] + 0.5 * dv) * dtc, axis=0)
                 all_R[node + 1:target + 1] = Rs[1:]
             # discrete F for each step, evaluated at the start of the step
             Fs = F_template[:n].copy()
-            dt3 = dt[:, None, None]
+            Rdt = Rs[:-1] * dt3
             Fs[:, 0, 3] = Fs[:, 1, 4] = Fs[:, 2, 5] = dt
-            Fs[:, 3:6, 6:9] = -(Rs[:-1] @ _hat_batch(a_b[:-1])) * dt3
-            Fs[:, 3:6, 9:12] = -Rs[:-1] * dt3
-            Fs[:, 6:9, 6:9] -= _hat_batch(w_mid[sl] - bw) * dt3
+            Fs[:, 3:6, 6:9] = Rdt @ (hat_ba - hat_f[sl])
+            Fs[:, 3:6, 9:12] = -Rdt
+            Fs[:, 6:9, 6:9] -= (hat_w[sl] - hat_bw) * dt3
             Fs[:, 6, 12] = Fs[:, 7, 13] = Fs[:, 8, 14] = -dt
             # P_n = Φ P Φᵀ + Σ_i Ψ_i Q_i Ψ_iᵀ with Ψ_i = F_{n−1} ⋯ F_{i+1} and Φ = Ψ_0 F_0: the
             # same as n sequential steps F P Fᵀ + Q, with one matrix product per step
@@ -705,6 +716,8 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
             R = R @ _exp1(-dx[6:9])
             ba = ba - dx[9:12]
             bw = bw - dx[12:15]
+            hat_ba = np.array([[0.0, -ba[2], ba[1]], [ba[2], 0.0, -ba[0]], [-ba[1], ba[0], 0.0]])
+            hat_bw = np.array([[0.0, -bw[2], bw[1]], [bw[2], 0.0, -bw[0]], [-bw[1], bw[0], 0.0]])
             if exact:
                 # G_r P G_rᵀ with G_r = I except its attitude block J: only rows/columns 6:9 change
                 J = _left_jacobian1(dx[6:9])
