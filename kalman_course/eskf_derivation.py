@@ -23,8 +23,8 @@ Three :class:`~kalman_course.symbolic.Derivation` objects, each proved by ``veri
 with :func:`error_dynamics_function` turning F_t into a numpy function (``lambdify``) that
 the tests compare with :func:`kalman_course.eskf.error_dynamics`.
 
-To register them with the course's export, append the three builders to
-``kalman_course.symbolic._BUILDERS`` (see the report in the chapter 08 issue).
+:func:`kalman_course.symbolic.derivations` lists them after the core derivations, so the
+course's export includes them.
 """
 
 from __future__ import annotations
@@ -266,5 +266,5 @@ def error_dynamics_function():
     return F_t
 
 
-#: The builders, in reading order; append them to ``symbolic._BUILDERS`` to register them.
+#: The builders, in reading order; :func:`kalman_course.symbolic.derivations` registers them.
 BUILDERS = (eskf_error_dynamics, eskf_discretisation, eskf_reset)
