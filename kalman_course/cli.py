@@ -6,6 +6,7 @@ execute   run lecture/solution notebooks in place and store their outputs
 build     write exercises/ from solutions/ (``--check`` verifies they are in sync)
 grade     grade exercise notebooks and print a points table
 export    write the derivations as LaTeX/Markdown, or the lectures as offline HTML
+bench     measure speed, accuracy and consistency and write a Markdown report
 data      rebuild the shipped KITTI excerpts from the PyPI packages
 """
 
@@ -192,6 +193,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--to", required=True, help="tex or md for derivations; html for notebooks")
     p.add_argument("-o", "--output", required=True, help="folder to write to")
     p.set_defaults(func=_cmd_export)
+
+    from kalman_course import bench
+
+    p = sub.add_parser("bench", help="measure speed, accuracy and consistency; write benchmarks/RESULTS.md")
+    bench.add_arguments(p)
+    p.set_defaults(func=bench.run)
 
     p = sub.add_parser("data", help="KITTI excerpt tooling")
     data_sub = p.add_subparsers(dest="data_command", required=True)
