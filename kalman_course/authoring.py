@@ -82,7 +82,8 @@ def _parse_regions(source: str, where: str):
             plain.append(lines[i])
             i += 1
             continue
-        pieces.append("\n".join(plain))
+        if plain:  # adjacent regions have no text between them, not an empty line
+            pieces.append("\n".join(plain))
         plain = []
         indent, check = m["indent"], m["check"]
         start = i
@@ -118,7 +119,8 @@ def _parse_regions(source: str, where: str):
             raise AuthoringError(f"{where}: the stub of region '{check}' (line {start + 1}) "
                                  f"has no '{FIX_THIS}' comment")
         pieces.append((check, "\n".join(sol), "\n".join(stub)))
-    pieces.append("\n".join(plain))
+    if plain:
+        pieces.append("\n".join(plain))
     return pieces
 
 
