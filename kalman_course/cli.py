@@ -32,6 +32,10 @@ def _cmd_execute(args: argparse.Namespace) -> int:
         print(f"[{i}/{len(paths)}] executing {path} ...", flush=True)
         try:
             elapsed = execute_notebook(path, timeout=args.timeout)
+        except FileNotFoundError as exc:
+            print(f"        error: {exc}", flush=True)
+            failed.append(path)
+            continue
         except CellExecutionError as exc:
             last = [line for line in str(exc).strip().splitlines() if line.strip()][-1]
             print(f"        FAILED, file left unchanged: {grading_summary(last)}", flush=True)
