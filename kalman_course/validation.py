@@ -26,6 +26,25 @@ def as_vector(value, name: str, n: int | None = None) -> np.ndarray:
     return arr
 
 
+def as_seed(seed) -> int:
+    """Return ``seed`` as a non-negative int for ``numpy.random.default_rng``."""
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    return int(seed)
+
+
+def as_scalar(value, name: str, *, allow_zero: bool = False) -> float:
+    """Return ``value`` as a finite positive float (or non-negative with ``allow_zero``)."""
+    kind = "non-negative" if allow_zero else "positive"
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a finite {kind} number, got {value!r}") from None
+    if not np.isfinite(v) or v < 0.0 or (v == 0.0 and not allow_zero):
+        raise ValueError(f"{name} must be a finite {kind} number, got {value!r}")
+    return v
+
+
 def as_matrix(value, name: str, shape: tuple[int | None, int | None] = (None, None)) -> np.ndarray:
     """Return ``value`` as a finite 2-D float array whose shape matches ``shape`` (None = any)."""
     arr = np.asarray(value, dtype=float)

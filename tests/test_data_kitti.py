@@ -293,8 +293,8 @@ def test_lidar_generator_applies_noise_on_the_right():
 @pytest.mark.parametrize("kwargs,msg", [
     (dict(seed=-1), "seed must be a non-negative integer"),
     (dict(seed=1.5), "seed must be a non-negative integer"),
-    (dict(seed=1, sigma_position=-0.1), "sigma_position must be a non-negative number"),
-    (dict(seed=1, sigma_attitude_deg="a"), "sigma_attitude_deg must be a non-negative number"),
+    (dict(seed=1, sigma_position=-0.1), "sigma_position must be a finite non-negative number"),
+    (dict(seed=1, sigma_attitude_deg="a"), "sigma_attitude_deg must be a finite non-negative number"),
 ])
 def test_generators_reject_bad_arguments(kwargs, msg):
     with pytest.raises(ValueError, match=msg):

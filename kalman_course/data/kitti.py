@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from kalman_course import so3
+from kalman_course.validation import as_scalar, as_seed
 from kalman_course.imu import NavState, NavTrajectory
 
 __all__ = [
@@ -391,22 +392,6 @@ class KittiExcerpt:
 # Noise generators
 # ---------------------------------------------------------------------------------------
 
-def _check_seed(seed) -> int:
-    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-    return int(seed)
-
-
-def _check_sigma(value, name: str) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a non-negative number, got {value!r}") from None
-    if not np.isfinite(v) or v < 0.0:
-        raise ValueError(f"{name} must be a non-negative number, got {value!r}")
-    return v
-
-
 def _rotations_of(record, name: str) -> np.ndarray:
     if hasattr(record, "rotation"):
         R = np.asarray(record.rotation, dtype=float)
@@ -442,9 +427,9 @@ def simulate_lidar_poses(truth, seed: int, sigma_position: float = 0.2,
     -------
     LidarData
     """
-    seed = _check_seed(seed)
-    sp = _check_sigma(sigma_position, "sigma_position")
-    sa = _check_sigma(sigma_attitude_deg, "sigma_attitude_deg")
+    seed = as_seed(seed)
+    sp = as_scalar(sigma_position, "sigma_position", allow_zero=True)
+    sa = as_scalar(sigma_attitude_deg, "sigma_attitude_deg", allow_zero=True)
     for attr in ("t", "position"):
         if not hasattr(truth, attr):
             raise ValueError(f"truth must have t (K,) and position (K, 3); missing {attr!r}")
@@ -482,8 +467,8 @@ def simulate_gnss(gnss, seed: int, sigma: float = 1.0) -> GnssData:
     GnssData
         A copy with ``position_noisy``, ``sigma`` and ``seed`` set.
     """
-    seed = _check_seed(seed)
-    sigma = _check_sigma(sigma, "sigma")
+    seed = as_seed(seed)
+    sigma = as_scalar(sigma, "sigma", allow_zero=True)
     for attr in ("t", "position"):
         if not hasattr(gnss, attr):
             raise ValueError(f"gnss must have t (M,) and position (M, 3); missing {attr!r}")

@@ -22,29 +22,12 @@ import numpy as np
 from kalman_course import so3
 from kalman_course.data.kitti import ImuData
 from kalman_course.imu import NavState, dead_reckon
-from kalman_course.validation import as_covariance, as_vector
+from kalman_course.validation import as_covariance, as_scalar, as_seed, as_vector
 
 __all__ = [
     "RandomWalk1D", "random_walk_1d", "CVTarget", "cv_target", "Measurement", "CTRVScenario",
     "ctrv_lidar_radar", "ctrv_step", "radar_measurement", "ImuScenario", "imu_trajectory",
 ]
-
-
-def _seed(seed) -> int:
-    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-    return int(seed)
-
-
-def _positive(value, name: str, allow_zero: bool = False) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
-    if not np.isfinite(v) or v < 0.0 or (v == 0.0 and not allow_zero):
-        kind = "non-negative" if allow_zero else "positive"
-        raise ValueError(f"{name} must be a finite {kind} number, got {value!r}")
-    return v
 
 
 def _count(value, name: str) -> int:
@@ -108,10 +91,10 @@ def random_walk_1d(n_steps: int, q: float, r: float, seed: int, x0: float = 0.0)
     RandomWalk1D
     """
     n = _count(n_steps, "n_steps")
-    q = _positive(q, "q", allow_zero=True)
-    r = _positive(r, "r", allow_zero=True)
+    q = as_scalar(q, "q", allow_zero=True)
+    r = as_scalar(r, "r", allow_zero=True)
     x0 = float(x0)
-    rng = np.random.default_rng(_seed(seed))
+    rng = np.random.default_rng(as_seed(seed))
     w = np.sqrt(q) * rng.standard_normal(n)
     v = np.sqrt(r) * rng.standard_normal(n)
     x = x0 + np.cumsum(w)
@@ -200,9 +183,9 @@ def cv_target(n_steps: int, dt: float, sigma_a: float, sigma_meas: float, seed: 
     CVTarget
     """
     n = _count(n_steps, "n_steps")
-    dt = _positive(dt, "dt")
-    sigma_a = _positive(sigma_a, "sigma_a", allow_zero=True)
-    sigma_meas = _positive(sigma_meas, "sigma_meas", allow_zero=True)
+    dt = as_scalar(dt, "dt")
+    sigma_a = as_scalar(sigma_a, "sigma_a", allow_zero=True)
+    sigma_meas = as_scalar(sigma_meas, "sigma_meas", allow_zero=True)
     if dim not in (1, 2, 3):
         raise ValueError(f"dim must be 1, 2 or 3, got {dim!r}")
     d = int(dim)
@@ -213,7 +196,7 @@ def cv_target(n_steps: int, dt: float, sigma_a: float, sigma_meas: float, seed: 
     Q = sigma_a**2 * G @ G.T
     H = np.hstack([I, Z])
     R = sigma_meas**2 * I
-    rng = np.random.default_rng(_seed(seed))
+    rng = np.random.default_rng(as_seed(seed))
     accel = sigma_a * rng.standard_normal((n, d))
     meas_noise = sigma_meas * rng.standard_normal((n, d))
     x = np.empty((n, 2 * d))
@@ -409,11 +392,11 @@ def ctrv_lidar_radar(seed: int, duration: float = 25.0, dt: float = 0.05, sigma_
     -------
     CTRVScenario
     """
-    seed = _seed(seed)
-    duration = _positive(duration, "duration")
-    dt = _positive(dt, "dt")
-    sigma_a = _positive(sigma_a, "sigma_a", allow_zero=True)
-    sigma_yaw_acc = _positive(sigma_yaw_acc, "sigma_yaw_acc", allow_zero=True)
+    seed = as_seed(seed)
+    duration = as_scalar(duration, "duration")
+    dt = as_scalar(dt, "dt")
+    sigma_a = as_scalar(sigma_a, "sigma_a", allow_zero=True)
+    sigma_yaw_acc = as_scalar(sigma_yaw_acc, "sigma_yaw_acc", allow_zero=True)
     R_l = as_covariance(R_lidar, "R_lidar", 2, positive_definite=True)
     R_r = as_covariance(R_radar, "R_radar", 3, positive_definite=True)
     x0 = as_vector(x0, "x0", 5)
@@ -602,13 +585,13 @@ def imu_trajectory(seed: int, duration: float = 60.0, rate: float = 100.0,
     -------
     ImuScenario
     """
-    seed = _seed(seed)
-    duration = _positive(duration, "duration")
-    rate = _positive(rate, "rate")
-    nd_a = _positive(accel_noise_density, "accel_noise_density", allow_zero=True)
-    nd_w = _positive(gyro_noise_density, "gyro_noise_density", allow_zero=True)
-    bd_a = _positive(accel_bias_density, "accel_bias_density", allow_zero=True)
-    bd_w = _positive(gyro_bias_density, "gyro_bias_density", allow_zero=True)
+    seed = as_seed(seed)
+    duration = as_scalar(duration, "duration")
+    rate = as_scalar(rate, "rate")
+    nd_a = as_scalar(accel_noise_density, "accel_noise_density", allow_zero=True)
+    nd_w = as_scalar(gyro_noise_density, "gyro_noise_density", allow_zero=True)
+    bd_a = as_scalar(accel_bias_density, "accel_bias_density", allow_zero=True)
+    bd_w = as_scalar(gyro_bias_density, "gyro_bias_density", allow_zero=True)
     b_a0 = as_vector(accel_bias0, "accel_bias0", 3)
     b_w0 = as_vector(gyro_bias0, "gyro_bias0", 3)
     g = as_vector(gravity, "gravity", 3)
