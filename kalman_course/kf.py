@@ -163,32 +163,51 @@ def _observation_noise(R, C, m: int) -> np.ndarray:
 # unvalidated kernels: the equations, nothing else
 # ---------------------------------------------------------------------------------------
 
-def _predict(x_hat, P_hat, F, BQBt, v):
-    """x̌ = F x̂ (+ v), P̌ = F P̂ Fᵀ + B Q Bᵀ. ``np.dot`` because it is the fastest call
-    numpy offers for these tiny products."""
+def _predict(x_hat, P_hat, F, BQBt, v, P_out=None):
+    """x̌ = F x̂ (+ v), P̌ = F P̂ Fᵀ + B Q Bᵀ, P̌ written into ``P_out`` if given. ``np.dot``
+    because it is the fastest call numpy offers for these tiny products."""
     x_check = dot(F, x_hat)                            # F x̂
     if v is not None:
         x_check += v                                   # + v
     P_check = dot(dot(F, P_hat), F.T) + BQBt           # F P̂ Fᵀ + B Q Bᵀ
-    return x_check, symmetrise(P_check)
+    return x_check, symmetrise(P_check, P_out)
 
 
-def _update(x_check, P_check, y, G, CRCt, joseph):
-    """The update equations; returns (x̂, P̂, innovation, S, K)."""
+def _gain(GP, S):
+    """K = P̌ Gᵀ S⁻¹, given GP = G P̌ (P̌ is symmetric, so P̌ Gᵀ = GPᵀ).
+
+    One or two measured components (a range, a position fix: most of this course) use the
+    closed form S⁻¹ = 1/s or adj(S)/det(S). For so small an S, ``np.linalg.solve`` costs
+    more in call overhead than the whole rest of an update; a larger S is solved, never
+    inverted.
+    """
+    m = S.shape[0]
+    if m == 1:
+        return GP.T / S[0, 0]
+    if m == 2:
+        (a, b), (c, d) = S.tolist()
+        det = a * d - b * c
+        if det > 0:                          # always, for S positive definite; otherwise
+            S_inv = np.array([[d / det, -b / det], [-c / det, a / det]])
+            return dot(GP.T, S_inv)          # solve below reports the singular S
+    return solve(S, GP).T                    # Kᵀ = S⁻¹ G P̌
+
+
+def _update(x_check, P_check, y, G, CRCt, joseph, I, P_out=None):
+    """The update equations; returns (x̂, P̂, innovation, S, K), P̂ written into ``P_out`` if
+    given. ``I`` is the (n, n) identity, made once by the caller (``np.eye`` costs as much
+    as a matrix product here)."""
     innovation = y - dot(G, x_check)                   # e = y - G x̌
     GP = dot(G, P_check)                               # G P̌, (m, n)
     S = dot(GP, G.T) + CRCt                            # S = G P̌ Gᵀ + C R Cᵀ
-    if S.shape[0] == 1:                                # K = P̌ Gᵀ S⁻¹:
-        K = GP.T / S[0, 0]                             #   scalar y, S⁻¹ is a division
-    else:
-        K = solve(S, GP).T                             #   else a solve, Kᵀ = S⁻¹ G P̌
+    K = _gain(GP, S)                                   # K = P̌ Gᵀ S⁻¹
     x_hat = x_check + dot(K, innovation)               # x̂ = x̌ + K e
     if joseph:
-        I_KG = np.eye(x_check.shape[0]) - dot(K, G)    # I - K G
+        I_KG = I - dot(K, G)                           # I - K G
         P_hat = dot(dot(I_KG, P_check), I_KG.T) + dot(dot(K, CRCt), K.T)
     else:
         P_hat = P_check - dot(K, GP)                   # P̂ = (I - K G) P̌ = P̌ - K G P̌
-    return x_hat, symmetrise(P_hat), innovation, S, K
+    return x_hat, symmetrise(P_hat, P_out), innovation, S, K
 
 
 # ---------------------------------------------------------------------------------------
@@ -273,10 +292,12 @@ def innovation_covariance(P_check, G, R, C=None):
 
 
 def kf_gain(P_check, G, S):
-    """Kalman gain :math:`K = \\check P G^T S^{-1}`, by a linear solve with S.
+    """Kalman gain :math:`K = \\check P G^T S^{-1}`.
 
-    Since :math:`\\check P` and S are symmetric, :math:`K^T = S^{-1} G \\check P`, which is
-    one call to ``np.linalg.solve``; no inverse is formed.
+    Since :math:`\\check P` and S are symmetric, :math:`K^T = S^{-1} G \\check P`: one call
+    to ``np.linalg.solve``, no inverse formed, except for one or two measured components,
+    where the closed-form :math:`S^{-1}` (a division, or adj(S)/det(S)) is exact to
+    round-off and far cheaper than the call.
 
     Parameters
     ----------
@@ -301,7 +322,7 @@ def kf_gain(P_check, G, S):
     P_check = as_covariance(P_check, "P_check")
     G = as_matrix(G, "G", (None, P_check.shape[0]))
     S = as_covariance(S, "S", G.shape[0], positive_definite=True)
-    return np.linalg.solve(S, G @ P_check).T
+    return _gain(G @ P_check, S)
 
 
 def kf_update(x_check, P_check, y, G, R, C=None, joseph=False):
@@ -353,7 +374,7 @@ def kf_update(x_check, P_check, y, G, R, C=None, joseph=False):
     m = y.shape[0]
     G = _matrix(G, "G", (m, n))
     CRCt = _observation_noise(R, C, m)
-    return KFUpdate(*_update(x_check, P_check, y, G, CRCt, bool(joseph)))
+    return KFUpdate(*_update(x_check, P_check, y, G, CRCt, bool(joseph), np.eye(n)))
 
 
 # ---------------------------------------------------------------------------------------
@@ -445,17 +466,22 @@ def run_kf(x0, P0, F, Q, G, R, ys, *, B=None, vs=None, joseph=False):
     rows = list(ys)
     inputs = [None] * N if vs is None else list(vs)
     joseph = bool(joseph)
+    I = np.eye(n)
 
+    # The covariances are symmetrised straight into their history rows (saves a copy per
+    # step); P then is that row, which nothing writes to again.
     x, P = x0, P0                                       # prior at step 0
+    P_check[0] = P0
     for k, has_measurement in enumerate(measured.tolist()):
         if k > 0:
-            x, P = _predict(x, P, F, BQBt, inputs[k])
+            x, P = _predict(x, P, F, BQBt, inputs[k], P_check[k])
         x_check[k] = x
-        P_check[k] = P
         if has_measurement:                             # else: posterior = prior, NaN rows
-            x, P, innovation[k], S[k], K[k] = _update(x, P, rows[k], G, CRCt, joseph)
+            x, P, innovation[k], S[k], K[k] = _update(x, P, rows[k], G, CRCt, joseph, I,
+                                                      P_hat[k])
+        else:
+            P_hat[k] = P
         x_hat[k] = x
-        P_hat[k] = P
 
     return KFHistory(x_check=x_check, P_check=P_check, x_hat=x_hat, P_hat=P_hat,
                      innovation=innovation, S=S, K=K)

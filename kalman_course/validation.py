@@ -102,9 +102,13 @@ def as_covariance(value, name: str, n: int | None = None, *, positive_definite: 
     return arr
 
 
-def symmetrise(P: np.ndarray) -> np.ndarray:
-    """Return (P + Pᵀ)/2: removes the round-off asymmetry a covariance update leaves."""
-    S = P.T.copy()
-    S += P
-    S *= 0.5
-    return S
+def symmetrise(P: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """Return (P + Pᵀ)/2: removes the round-off asymmetry a covariance update leaves.
+
+    The result is exactly symmetric (floating-point addition commutes). ``out``, an array
+    of P's shape that does not overlap P, receives the result (a filter's history row),
+    which saves a copy inside a filter loop.
+    """
+    out = np.add(P, P.T, out=out)
+    out *= 0.5
+    return out

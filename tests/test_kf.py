@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 from filterpy.kalman import KalmanFilter
 
-from kalman_course.kf import (KFHistory, KFUpdate, innovation_covariance, kf_gain, kf_predict,
-                              kf_update, run_kf)
+from kalman_course.kf import (KFHistory, KFUpdate, _gain, innovation_covariance, kf_gain,
+                              kf_predict, kf_update, run_kf)
+from kalman_course.validation import symmetrise
 
 TOL = dict(rtol=1e-10, atol=1e-10)
 
@@ -368,6 +369,44 @@ RUN_CASES = [
 def test_run_kf_validation(kw, match):
     with pytest.raises(ValueError, match=match):
         run_kf(**kw)
+
+
+# --------------------------------------------------------------------------------------
+# the gain's closed forms and the in-place symmetrisation
+# --------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("m", [1, 2, 3])
+@pytest.mark.parametrize("condition", [1.0, 1e4, 1e8])
+def test_gain_closed_forms_agree_with_a_solve(m, condition):
+    """m = 1, 2 use S⁻¹ in closed form; they must agree with np.linalg.solve to round-off."""
+    rng = np.random.default_rng(int(condition) + m)
+    U, _ = np.linalg.qr(rng.standard_normal((m, m)))
+    S = U @ np.diag(np.geomspace(1.0, 1.0 / condition, m)) @ U.T
+    S = 0.5 * (S + S.T)
+    GP = rng.standard_normal((m, 5))
+    K = _gain(GP, S)
+    K_solve = np.linalg.solve(S, GP).T
+    assert K.shape == (5, m)
+    scale = np.abs(K_solve).max()
+    assert np.abs(K - K_solve).max() <= 50 * np.finfo(float).eps * condition * scale
+
+
+def test_gain_of_a_singular_2x2_is_reported_by_the_solve():
+    """No ZeroDivisionError or silent inf from the closed form: the solve raises."""
+    with pytest.raises(np.linalg.LinAlgError):
+        _gain(np.ones((2, 3)), np.ones((2, 2)))
+
+
+def test_symmetrise_into_a_history_row():
+    rng = np.random.default_rng(21)
+    A = rng.standard_normal((4, 4))
+    history = np.zeros((3, 4, 4))
+    out = symmetrise(A, history[1])
+    assert out is not None and np.shares_memory(out, history)
+    assert np.array_equal(history[1], history[1].T)
+    np.testing.assert_allclose(history[1], 0.5 * (A + A.T), rtol=0, atol=1e-15)
+    assert not history[0].any() and not history[2].any()
+    assert np.array_equal(symmetrise(A), history[1])
 
 
 # --------------------------------------------------------------------------------------
