@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kalman_course import eskf, metrics, so3
+from kalman_course import eskf, metrics, so3, validation
 from kalman_course.data import imu_trajectory, simulate_lidar_poses
 from kalman_course.eskf_config import EskfConfig, load_config
 
@@ -496,9 +496,12 @@ def joseph_update(P, K, G, R) -> np.ndarray:
 
 
 def symmetrise(P) -> np.ndarray:
-    """½ (P + Pᵀ): removes the antisymmetric part that round-off or a wrong form left."""
-    P = np.asarray(P, dtype=float)
-    return 0.5 * (P + P.T)
+    """½ (P + Pᵀ): removes the antisymmetric part that round-off or a wrong form left.
+
+    :func:`kalman_course.validation.symmetrise` (what every filter in the course calls),
+    for any array_like.
+    """
+    return validation.symmetrise(np.asarray(P, dtype=float))
 
 
 def covariance_health(P) -> tuple[float, float]:

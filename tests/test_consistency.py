@@ -141,8 +141,9 @@ def test_roundoff_experiment():
 def test_bench_smoke():
     """A tiny part of the benchmark report: the KF timing runs and one excerpt's accuracy rows."""
     from kalman_course import bench
-    k = bench.kf_speed(n_steps=50, repeats=1)
-    assert k["run_kf"] > 0 and k["calls"] > 0
+    for dim in (2, 3):
+        k = bench.kf_speed(n_steps=50, repeats=1, dim=dim)
+        assert k["dim"] == dim and k["run_kf"] > 0 and k["calls"] > 0 and k["ratio"] > 0
     rows = bench.excerpt_accuracy("cruise")
     lidar, raw = rows["ESKF + lidar (10 Hz)"], rows["raw lidar poses (σ 0.2 m, 0.3°)"]
     assert lidar["pos"] < 0.4 * raw["pos"] and lidar["att"] < 0.3 * raw["att"]

@@ -417,7 +417,8 @@ def test_run_kf_per_step_cost_is_in_filterpys_league():
     """Catches a regression such as re-validating inside the loop (that costs ~2.5x).
 
     The course's target (run_kf per step <= 1.0x FilterPy's predict+update) is measured
-    by the benchmark; on a shared 2-core machine a unit test can only guard with margin.
+    by the benchmark as a median of interleaved pairs; a best-of-5 here ranges 0.6-1.0 on
+    the shared 2-core machines, so the unit test can only guard with margin.
     """
     T = 0.1
     F = np.kron(np.eye(2), np.array([[1.0, T], [0.0, 1.0]]))
@@ -444,4 +445,4 @@ def test_run_kf_per_step_cost_is_in_filterpys_league():
             t0 = time.perf_counter()
             fn()
             best[fn] = min(best[fn], time.perf_counter() - t0)
-    assert best[ours] <= 1.25 * best[theirs], (best[ours], best[theirs])
+    assert best[ours] <= 1.25 * best[theirs], (best[ours], best[theirs], best[ours] / best[theirs])
