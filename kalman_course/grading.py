@@ -25,6 +25,7 @@ from pathlib import Path
 import nbformat
 
 from kalman_course.authoring import CHECK_OUTPUT_TAG, GRADER_TAG, IGNORE_OUTPUT_TAG, grader_info
+from kalman_course.review import review_flags
 
 ANSI_RE = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
 EXCEPTION_LINE_RE = re.compile(r"^\s*([A-Za-z_][\w.]*(?:Error|Failed|Exception|Interrupt)): (.+)$", re.M)
@@ -62,6 +63,7 @@ class NotebookResult:
     tampered: list[str] = field(default_factory=list)
     readded: list[str] = field(default_factory=list)
     learner_errors: list[str] = field(default_factory=list)
+    flags: list[str] = field(default_factory=list)
     detail: str = ""
     seconds: float = 0.0
 
@@ -279,6 +281,7 @@ def grade_notebook(path: str | Path, release: dict, *, timeout: float = 120.0,
         return result
     ref = release[result.chapter]
     nb, result.tampered, result.readded = restore_graders(submission, ref)
+    result.flags = review_flags(nb, ref)
     result.status, cells, result.detail = run_notebook(nb, timeout=timeout)
     if result.status == GRADED and (result.tampered or result.readded):
         result.status = TAMPERED_RESTORED
@@ -360,6 +363,9 @@ def write_feedback(results: list[NotebookResult], folder: str | Path) -> list[Pa
             if r.tampered or r.readded:
                 lines += ["Grader cells were restored from the released exercise before grading "
                           f"(edited: {', '.join(r.tampered) or 'none'}; missing: {', '.join(r.readded) or 'none'}).", ""]
+            if r.flags:
+                lines += ["Flagged for review by hand (the points above are what the checks gave):", ""]
+                lines += [f"- {flag}" for flag in r.flags] + [""]
             for error in r.learner_errors:
                 lines.append(f"- your {error}")
             if r.learner_errors:
@@ -395,19 +401,21 @@ def format_table(results: list[NotebookResult]) -> str:
         if r.tampered or r.readded:
             lines.append(f"note: {Path(r.path).name}: grader cells restored "
                          f"(edited: {', '.join(r.tampered) or 'none'}; re-added: {', '.join(r.readded) or 'none'})")
+        for flag in r.flags:
+            lines.append(f"review: {Path(r.path).name}: {flag}")
     return "\n".join(lines)
 
 
 def write_csv(results: list[NotebookResult], path: str | Path) -> None:
-    """Write one row per notebook: learner, chapter, status, points, each check's points, restored cells."""
+    """Write one row per notebook: learner, chapter, status, points, each check's points, restored cells, review flags."""
     with open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
         w.writerow(["learner", "notebook", "chapter", "status", "points", "possible", "checks",
-                    "tampered", "readded", "hint"])
+                    "tampered", "readded", "flags", "hint"])
         for r in results:
             w.writerow([r.learner, r.path, r.chapter, r.status, r.points, r.possible,
                         ";".join(f"{c.check}={c.points}/{c.possible}" for c in r.checks),
-                        ";".join(r.tampered), ";".join(r.readded), r.hint])
+                        ";".join(r.tampered), ";".join(r.readded), " | ".join(r.flags), r.hint])
 
 
 def write_json(results: list[NotebookResult], path: str | Path) -> None:

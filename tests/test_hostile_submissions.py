@@ -94,6 +94,11 @@ CASES = {
     "grader_deleted": (_delete("grader-histogram_update"), grading.TAMPERED_RESTORED, FULL),
     "cell_id_changed": (_rename("grader-histogram_predict", "my-cell"), grading.TAMPERED_RESTORED, FULL),
     "imports_reference": (_replace("update", "from kalman_course.bayes import histogram_update"), grading.GRADED, FULL),
+    # the patch works inside the kernel: the wrong (unnormalised) update passes its patched check
+    # and only the filter check catches it; the review flag is the defence
+    "patches_checks": (lambda nb: _insert_after(
+        _edit("update", "unnormalised / unnormalised.sum()", "unnormalised")(nb), "setup",
+        "checks.histogram_update = lambda fn: print('histogram_update: passed')"), grading.GRADED, FULL - 2),
 }
 RAW = {"corrupt_json": "{ not json", "empty": ""}
 
@@ -146,6 +151,18 @@ def test_restorations_are_reported_and_nothing_false_is_said(graded):
     assert results["cell_id_changed"]["readded"] == ["grader-histogram_predict"]
     assert results["imports_reference"]["tampered"] == [] and results["imports_reference"]["readded"] == []
     assert "grader_prints_success" not in [n for n, r in results.items() if r["points"] == FULL]
+
+
+def test_shortcuts_are_flagged_for_review_and_honest_work_is_not(graded):
+    _, results, _, out = graded
+    flagged = {name for name, r in results.items() if r["flags"]}
+    assert flagged == {"imports_reference", "patches_checks"}
+    assert results["imports_reference"]["flags"] == [
+        "cell update: imports `histogram_update` from `kalman_course.bayes` instead of writing it"]
+    assert results["patches_checks"]["flags"] == [
+        "cell learner-extra: assigns to `checks.histogram_update`, part of the grading code"]
+    assert "Flagged for review" in (out / "fb" / "patches_checks.md").read_text()
+    assert "assigns to `checks.histogram_update`" in (out / "g.csv").read_text()
 
 
 def test_other_chapter_is_graded_as_what_it_is(graded):
