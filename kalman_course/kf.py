@@ -176,10 +176,9 @@ def _predict(x_hat, P_hat, F, BQBt, v, P_out=None):
 def _gain(GP, S):
     """K = P̌ Gᵀ S⁻¹, given GP = G P̌ (P̌ is symmetric, so P̌ Gᵀ = GPᵀ).
 
-    One or two measured components (a range, a position fix: most of this course) use the
-    closed form S⁻¹ = 1/s or adj(S)/det(S). For so small an S, ``np.linalg.solve`` costs
-    more in call overhead than the whole rest of an update; a larger S is solved, never
-    inverted.
+    One or two measured components (a range, a 2-D position fix) use the closed form
+    S⁻¹ = 1/s or adj(S)/det(S): for so small an S, ``np.linalg.solve`` costs more in call
+    overhead than the whole rest of an update. A larger S is solved, never inverted.
     """
     m = S.shape[0]
     if m == 1:
@@ -187,10 +186,10 @@ def _gain(GP, S):
     if m == 2:
         (a, b), (c, d) = S.tolist()
         det = a * d - b * c
-        if det > 0:                          # always, for S positive definite; otherwise
+        if det > 0:                          # always when S is positive definite
             S_inv = np.array([[d / det, -b / det], [-c / det, a / det]])
-            return dot(GP.T, S_inv)          # solve below reports the singular S
-    return solve(S, GP).T                    # Kᵀ = S⁻¹ G P̌
+            return dot(GP.T, S_inv)
+    return solve(S, GP).T                    # Kᵀ = S⁻¹ G P̌; reports a singular S
 
 
 def _update(x_check, P_check, y, G, CRCt, joseph, I, P_out=None):
