@@ -98,3 +98,32 @@ def test_table_and_gradebooks(tmp_path):
     grading.write_json([ok, bad], tmp_path / "g.json")
     assert "f=0/2" in (tmp_path / "g.csv").read_text()
     assert '"points": 2' in (tmp_path / "g.json").read_text()
+
+
+def test_review_flags_reach_table_summary_and_gradebook(tmp_path):
+    flagged = grading.NotebookResult("a/01_x.ipynb", "alice", "01", flags=["cell c: imports `f` from `m`"],
+                                     checks=[grading.CheckResult("f", "grader-f", 2, 2)])
+    clean = grading.NotebookResult("b/01_x.ipynb", "bob", "01", checks=[grading.CheckResult("f", "grader-f", 2, 2)])
+    assert "review: 01_x.ipynb: cell c: imports `f` from `m`" in grading.format_table([flagged, clean])
+    assert "flagged for review: 1" in grading.format_summary([flagged, clean])
+    assert "flagged" not in grading.format_summary([clean])
+    grading.write_csv([flagged, clean], tmp_path / "g.csv")
+    assert "cell c: imports `f` from `m`" in (tmp_path / "g.csv").read_text()
+    feedback = {p.stem: p.read_text() for p in grading.write_feedback([flagged, clean], tmp_path / "fb")}
+    assert "Flagged for review" in feedback["alice"] and "Flagged" not in feedback["bob"]
+
+
+def test_a_failing_review_never_costs_the_grade(tmp_path, monkeypatch):
+    import nbformat
+
+    def broken_review(nb, ref):
+        raise RecursionError("deep")
+
+    passed = [{"cell_id": "grader-f_check", "passed": True, "message": ""}]
+    monkeypatch.setattr(grading, "review_flags", broken_review)
+    monkeypatch.setattr(grading, "run_notebook", lambda nb, timeout: (grading.GRADED, passed, ""))
+    path = tmp_path / "07_x.ipynb"
+    nbformat.write(nbformat.from_dict(_release()), path)
+    result = grading.grade_notebook(path, {"07": _release()})
+    assert (result.status, result.points) == (grading.GRADED, 2)
+    assert result.flags == ["the code review failed (RecursionError); read the notebook by hand"]
