@@ -31,14 +31,22 @@ MACHINERY = ("kalman_course.checks", "kalman_course.grading", "kalman_course.nbv
 _ESCAPES = ("importlib", "builtins", "__builtins__")
 
 
-def _parse(source: str) -> ast.Module | None:
-    """The cell's AST with IPython syntax (magics, shell escapes) translated; None if invalid."""
+def _parser():
+    """A function source -> AST (IPython magics and shell escapes translated; None if the
+    cell is not valid Python), parsing each distinct source once."""
     from IPython.core.inputtransformer2 import TransformerManager
 
-    try:
-        return ast.parse(TransformerManager().transform_cell(source))
-    except (SyntaxError, ValueError):
-        return None  # the learner's own error; the run reports it
+    transformer, trees = TransformerManager(), {}
+
+    def parse(source: str) -> ast.Module | None:
+        if source not in trees:
+            try:
+                trees[source] = ast.parse(transformer.transform_cell(source))
+            except (SyntaxError, ValueError):
+                trees[source] = None  # the learner's own error; the run reports it
+        return trees[source]
+
+    return parse
 
 
 def _is_machinery(module: str) -> bool:
@@ -114,10 +122,10 @@ def _cell_flags(tree: ast.Module, to_write: set[str], machinery: set[str]) -> se
     return flags
 
 
-def _functions_to_write(release) -> set[str]:
+def _functions_to_write(release, parse) -> set[str]:
     names = set()
     for cell in release.cells:
-        if cell.cell_type == "code" and FIX_THIS in cell.source and (tree := _parse(cell.source)):
+        if cell.cell_type == "code" and FIX_THIS in cell.source and (tree := parse(cell.source)):
             names |= {n.name for n in ast.walk(tree) if isinstance(n, ast.FunctionDef)}
     return names
 
@@ -140,10 +148,11 @@ def review_flags(submission, release) -> list[str]:
     """
     released = {c.get("id"): c for c in release.cells if c.cell_type == "code"}
     graders = {cid for cid, c in released.items() if grader_info(c)}
-    to_write = _functions_to_write(release)
+    parse = _parser()
+    to_write = _functions_to_write(release, parse)
     machinery = set()
     for cell in [*release.cells, *submission.cells]:
-        if cell.cell_type == "code" and (tree := _parse(cell.source)):
+        if cell.cell_type == "code" and (tree := parse(cell.source)):
             machinery |= _machinery_names(tree)
 
     out = []
@@ -154,11 +163,11 @@ def review_flags(submission, release) -> list[str]:
         original = released.get(cid)
         if original is not None and original.source == cell.source:
             continue
-        tree = _parse(cell.source)
+        tree = parse(cell.source)
         if tree is None:
             continue
         flags = _cell_flags(tree, to_write, machinery)
-        if original is not None and (original_tree := _parse(original.source)):
+        if original is not None and (original_tree := parse(original.source)):
             flags -= _cell_flags(original_tree, to_write, machinery)
         out += [f"cell {cid}: {flag}" for flag in sorted(flags)]
     return out
