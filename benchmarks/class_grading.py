@@ -18,7 +18,7 @@ from contextlib import redirect_stdout
 from io import StringIO
 from pathlib import Path
 
-from kalman_course import cli
+from kalman_course.tooling import cli
 
 ROOT = Path(__file__).resolve().parent.parent
 

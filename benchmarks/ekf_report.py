@@ -20,7 +20,8 @@ import time
 
 import numpy as np
 
-from kalman_course import ekf, symbolic
+from kalman_course.filters import ekf
+from kalman_course import symbolic
 from kalman_course.data import ctrv_lidar_radar, load_kitti
 
 TARGET_POS, TARGET_VEL = 0.11, 0.52

@@ -32,11 +32,11 @@ import types
 
 import numpy as np
 
-from kalman_course import eskf
+from kalman_course.filters import eskf
 from kalman_course.data import load_kitti, simulate_gnss, simulate_lidar_poses
-from kalman_course.eskf_config import load_config
-from kalman_course.nominal_ekf import run_nominal_ekf
-from kalman_course.trajectory import ate_rmse, umeyama
+from kalman_course.filters.eskf_config import load_config
+from kalman_course.filters.nominal_ekf import run_nominal_ekf
+from kalman_course.evaluation.trajectory import ate_rmse, umeyama
 
 EXCERPTS = ("cruise", "turns", "stop_go")
 EXTRA_SEEDS = (101, 202, 303, 404)

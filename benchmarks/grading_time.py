@@ -12,7 +12,7 @@ import statistics
 import sys
 from pathlib import Path
 
-from kalman_course import grading
+from kalman_course.tooling import grading
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -18,8 +18,8 @@ import time
 import numpy as np
 
 from kalman_course.data import load_kitti
-from kalman_course.imu import dead_reckon
-from kalman_course.trajectory import ate_rmse
+from kalman_course.core.imu import dead_reckon
+from kalman_course.evaluation.trajectory import ate_rmse
 
 
 def slam_ate() -> list[tuple[str, float, float, float]]:

@@ -7,8 +7,8 @@ import nbformat
 import pytest
 from nbformat.v4 import new_code_cell, new_notebook
 
-from kalman_course import authoring
-from kalman_course.authoring import AuthoringError
+from kalman_course.tooling import authoring
+from kalman_course.tooling.authoring import AuthoringError
 
 from conftest import ROOT
 

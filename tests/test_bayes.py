@@ -1,9 +1,9 @@
-"""Tests for kalman_course.bayes (the histogram filter)."""
+"""Tests for kalman_course.filters.bayes (the histogram filter)."""
 
 import numpy as np
 import pytest
 
-from kalman_course.bayes import (circular_motion_model, histogram_predict, histogram_update,
+from kalman_course.filters.bayes import (circular_motion_model, histogram_predict, histogram_update,
                                  normalise)
 
 

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from kalman_course import consistency as C
-from kalman_course import metrics
+from kalman_course.chapters import consistency as C
+from kalman_course.evaluation import metrics
 from kalman_course.data import load_kitti
 
 
@@ -72,7 +72,7 @@ def test_gated_run_rejects_the_outliers(cruise, outlier_runs):
     assert rejected[~mask[gated.index]].sum() <= 3           # and hardly any good pose
     # the decision is the sequential one: every pose is judged by its own prior's NIS
     np.testing.assert_array_equal(gated.accepted, gated.nis <= gated.threshold)
-    from kalman_course import eskf
+    from kalman_course.filters import eskf
     errs = []
     for run in (gated, ungated):
         r = run.result
@@ -81,7 +81,7 @@ def test_gated_run_rejects_the_outliers(cruise, outlier_runs):
 
 
 def test_gated_run_without_outliers_matches_the_plain_filter(cruise):
-    from kalman_course import eskf
+    from kalman_course.filters import eskf
     run = C.run_gated(cruise, confidence=None)
     k0, s0 = cruise.initial_state()
     ref = eskf.run(cruise.imu, s0, "kitti_lidar", cruise.gravity, lidar=cruise.lidar, start=k0)
@@ -140,7 +140,7 @@ def test_roundoff_experiment():
 
 def test_bench_smoke():
     """A tiny part of the benchmark report: the KF timing runs and one excerpt's accuracy rows."""
-    from kalman_course import bench
+    from kalman_course.tooling import bench
     for dim in (2, 3):
         k = bench.kf_speed(n_steps=50, repeats=1, dim=dim)
         assert k["dim"] == dim and k["run_kf"] > 0 and k["calls"] > 0 and k["ratio"] > 0

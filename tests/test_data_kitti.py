@@ -7,10 +7,10 @@ import zipfile
 import numpy as np
 import pytest
 
-from kalman_course import so3
+from kalman_course.core import so3
 from kalman_course.data import (EXCERPTS, SCHEMA_VERSION, KittiExcerpt, kitti_dir, load_excerpt_file,
                                 load_kitti, read_manifest, simulate_gnss, simulate_lidar_poses)
-from kalman_course.trajectory import ate_rmse
+from kalman_course.evaluation.trajectory import ate_rmse
 
 EXCERPT_NAMES = ("cruise", "turns", "stop_go")
 DOC_INTERPOLATED_SPANS = [(35.85, 37.54), (198.18, 199.83), (202.53, 204.17), (219.12, 220.81),

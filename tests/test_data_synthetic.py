@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from kalman_course import so3
+from kalman_course.core import so3
 from kalman_course.data import (ctrv_lidar_radar, ctrv_step, cv_target, imu_trajectory, radar_measurement,
                                 random_walk_1d)
 from kalman_course.data.synthetic import _analytic_motion
-from kalman_course.imu import dead_reckon
+from kalman_course.core.imu import dead_reckon
 
 
 def within_sd(sample_sd, sd, n, k=4.0):

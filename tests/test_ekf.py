@@ -4,7 +4,8 @@ angle wrapping, and the chapters' acceptance numbers."""
 import numpy as np
 import pytest
 
-from kalman_course import ekf, kf, symbolic
+from kalman_course.filters import ekf, kf
+from kalman_course import symbolic
 from kalman_course.data import ctrv_lidar_radar
 
 

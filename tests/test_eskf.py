@@ -7,11 +7,12 @@ import types
 import numpy as np
 import pytest
 
-from kalman_course import eskf, so3
+from kalman_course.filters import eskf
+from kalman_course.core import so3
 from kalman_course.data import imu_trajectory, load_kitti
-from kalman_course.eskf import NominalState
-from kalman_course.eskf_config import load_config
-from kalman_course.trajectory import ate_rmse
+from kalman_course.filters.eskf import NominalState
+from kalman_course.filters.eskf_config import load_config
+from kalman_course.evaluation.trajectory import ate_rmse
 
 G = np.array([0.0, 0.0, -9.8092])
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-from kalman_course.eskf_config import config_dir, config_from_dict, load_config
+from kalman_course.filters.eskf_config import config_dir, config_from_dict, load_config
 
 
 def _raw(name="kitti_lidar"):

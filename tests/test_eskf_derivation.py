@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from kalman_course import eskf, eskf_derivation, so3
+from kalman_course.filters import eskf
+from kalman_course.symbolic import eskf as eskf_derivation
+from kalman_course.core import so3
 
 
 @pytest.mark.parametrize("build", eskf_derivation.BUILDERS, ids=lambda b: b.__name__)

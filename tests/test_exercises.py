@@ -12,7 +12,7 @@ import shutil
 import nbformat
 import pytest
 
-from kalman_course import authoring, cli, grading
+from kalman_course.tooling import authoring, cli, grading
 
 from conftest import ROOT
 

@@ -6,7 +6,7 @@ import subprocess
 
 import pytest
 
-from kalman_course import cli, export
+from kalman_course.tooling import cli, export
 
 from conftest import ROOT
 

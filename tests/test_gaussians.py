@@ -1,4 +1,4 @@
-"""Tests for kalman_course.gaussians."""
+"""Tests for kalman_course.core.gaussians."""
 
 import math
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from kalman_course.gaussians import (block_inverse, conditional, gaussian_logpdf, gaussian_pdf,
+from kalman_course.core.gaussians import (block_inverse, conditional, gaussian_logpdf, gaussian_pdf,
                                      joint_linear, linear_map, marginal, product,
                                      schur_complement)
 
@@ -195,7 +195,7 @@ def test_joint_linear_blocks_and_conditioning_round_trip():
 
 
 def test_conditioning_the_linear_joint_is_the_kalman_update():
-    from kalman_course.kf import kf_update
+    from kalman_course.filters.kf import kf_update
 
     rng = np.random.default_rng(5)
     mu_x, Sxx = rng.standard_normal(3), random_spd(rng, 3)

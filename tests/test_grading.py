@@ -5,7 +5,7 @@ import copy
 import pytest
 from nbformat.v4 import new_code_cell, new_markdown_cell, new_notebook
 
-from kalman_course import grading
+from kalman_course.tooling import grading
 
 
 def _release():

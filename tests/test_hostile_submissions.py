@@ -13,7 +13,7 @@ import nbformat
 import pytest
 from nbformat.v4 import new_code_cell
 
-from kalman_course import authoring, cli, grading
+from kalman_course.tooling import authoring, cli, grading
 
 from conftest import ROOT
 
@@ -93,7 +93,7 @@ CASES = {
         grading.TAMPERED_RESTORED, 4),  # the wrong likelihood also sinks the recursion check
     "grader_deleted": (_delete("grader-histogram_update"), grading.TAMPERED_RESTORED, FULL),
     "cell_id_changed": (_rename("grader-histogram_predict", "my-cell"), grading.TAMPERED_RESTORED, FULL),
-    "imports_reference": (_replace("update", "from kalman_course.bayes import histogram_update"), grading.GRADED, FULL),
+    "imports_reference": (_replace("update", "from kalman_course.filters.bayes import histogram_update"), grading.GRADED, FULL),
     # the patch works inside the kernel: the wrong (unnormalised) update passes its patched check
     # and only the filter check catches it; the review flag is the defence
     "patches_checks": (lambda nb: _insert_after(
@@ -158,7 +158,7 @@ def test_shortcuts_are_flagged_for_review_and_honest_work_is_not(graded):
     flagged = {name for name, r in results.items() if r["flags"]}
     assert flagged == {"imports_reference", "patches_checks"}
     assert results["imports_reference"]["flags"] == [
-        "cell update: imports `histogram_update` from `kalman_course.bayes` instead of writing it"]
+        "cell update: imports `histogram_update` from `kalman_course.filters.bayes` instead of writing it"]
     assert results["patches_checks"]["flags"] == [
         "cell learner-extra: assigns to `checks.histogram_update`, part of the grading code"]
     assert "Flagged for review" in (out / "fb" / "patches_checks.md").read_text()

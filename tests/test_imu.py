@@ -1,13 +1,13 @@
-"""Tests of the midpoint IMU mechanisation (kalman_course.imu)."""
+"""Tests of the midpoint IMU mechanisation (kalman_course.core.imu)."""
 
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from kalman_course import so3
+from kalman_course.core import so3
 from kalman_course.data import load_kitti
-from kalman_course.imu import NavState, dead_reckon, midpoint_step
+from kalman_course.core.imu import NavState, dead_reckon, midpoint_step
 
 G = np.array([0.0, 0.0, -9.81])
 

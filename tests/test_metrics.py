@@ -1,4 +1,4 @@
-"""Tests for kalman_course.metrics: scipy.stats.chi2 as the oracle, hand values."""
+"""Tests for kalman_course.evaluation.metrics: scipy.stats.chi2 as the oracle, hand values."""
 
 import math
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from kalman_course.kf import run_kf
-from kalman_course.metrics import (chi2_bounds, chi2_cdf, chi2_ppf, nees, nis, rmse,
+from kalman_course.filters.kf import run_kf
+from kalman_course.evaluation.metrics import (chi2_bounds, chi2_cdf, chi2_ppf, nees, nis, rmse,
                                    share_inside)
 
 DOFS = [0.5, 1, 2, 3, 4.5, 6, 15, 40, 150, 1000, 4500]

@@ -162,7 +162,7 @@ def test_model_derivations_are_registered_and_prove(name):
 # ---------------------------------------------------------------- chapter 04 on KITTI
 
 def test_kitti_model_states_are_consistent_across_models():
-    from kalman_course import motion
+    from kalman_course.chapters import motion
 
     t = np.array([320.0, 330.0, 340.0])
     _, cv = motion.kitti_model_states("turns", "cv", t)
@@ -178,7 +178,7 @@ def test_kitti_model_states_are_consistent_across_models():
 
 
 def test_prediction_error_grows_with_the_horizon_and_short_horizons_are_good():
-    from kalman_course import motion
+    from kalman_course.chapters import motion
 
     err = motion.horizon_errors("cruise", horizons=(0.5, 1.0, 2.0, 4.0))
     assert err.rms.shape == (4, 4) and err.n_starts > 10

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kalman_course import eskf, nominal_ekf, so3
+from kalman_course.filters import eskf, nominal_ekf
+from kalman_course.core import so3
 from kalman_course.data import load_kitti
 
 G = np.array([0.0, 0.0, -9.8092])

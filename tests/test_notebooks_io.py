@@ -3,7 +3,7 @@
 import nbformat
 from nbformat.v4 import new_code_cell, new_markdown_cell, new_notebook, new_output
 
-from kalman_course.notebooks import normalise, notebook_text
+from kalman_course.tooling.notebooks import normalise, notebook_text
 
 
 def _executed():

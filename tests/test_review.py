@@ -1,4 +1,4 @@
-"""Tests for kalman_course.review: what gets flagged, and that honest work never is."""
+"""Tests for kalman_course.tooling.review: what gets flagged, and that honest work never is."""
 
 import copy
 
@@ -6,8 +6,8 @@ import nbformat
 import pytest
 from nbformat.v4 import new_code_cell
 
-from kalman_course import authoring
-from kalman_course.review import review_flags
+from kalman_course.tooling import authoring
+from kalman_course.tooling.review import review_flags
 
 from conftest import ROOT
 
@@ -56,17 +56,17 @@ def _with_extra_cell(source):
 
 
 CASES = [
-    (_with_update_cell("from kalman_course.bayes import histogram_update"),
-     "cell update: imports `histogram_update` from `kalman_course.bayes` instead of writing it"),
-    (_with_update_cell("from kalman_course.bayes import histogram_update as ref\n"
+    (_with_update_cell("from kalman_course.filters.bayes import histogram_update"),
+     "cell update: imports `histogram_update` from `kalman_course.filters.bayes` instead of writing it"),
+    (_with_update_cell("from kalman_course.filters.bayes import histogram_update as ref\n"
                        "def histogram_update(b, l):\n    return ref(b, l)"),
-     "cell update: imports `histogram_update` from `kalman_course.bayes` instead of writing it"),
-    (_with_update_cell("import kalman_course.bayes as kb\nhistogram_update = kb.histogram_update"),
+     "cell update: imports `histogram_update` from `kalman_course.filters.bayes` instead of writing it"),
+    (_with_update_cell("import kalman_course.filters.bayes as kb\nhistogram_update = kb.histogram_update"),
      "cell update: binds `histogram_update` to `kb.histogram_update` instead of writing it"),
-    (_with_update_cell("import kalman_course.bayes\n"
+    (_with_update_cell("import kalman_course.filters.bayes\n"
                        "def histogram_update(belief, likelihood):\n"
-                       "    return kalman_course.bayes.histogram_update(belief, likelihood)"),
-     "cell update: `histogram_update` calls `kalman_course.bayes.histogram_update` instead of doing the work"),
+                       "    return kalman_course.filters.bayes.histogram_update(belief, likelihood)"),
+     "cell update: `histogram_update` calls `kalman_course.filters.bayes.histogram_update` instead of doing the work"),
     (_with_extra_cell("checks.histogram_update = lambda f: print('histogram_update: passed')"),
      "cell extra: assigns to `checks.histogram_update`, part of the grading code"),
     (_with_extra_cell("from kalman_course.checks import harness\nharness.call = lambda fn, *a, **k: None"),

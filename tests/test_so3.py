@@ -1,10 +1,10 @@
-"""Tests of kalman_course.so3 against identities, SymPy and finite differences."""
+"""Tests of kalman_course.core.so3 against identities, SymPy and finite differences."""
 
 import numpy as np
 import pytest
 import sympy as sp
 
-from kalman_course import so3
+from kalman_course.core import so3
 
 
 def random_rotvecs(rng, n, max_angle=np.pi):

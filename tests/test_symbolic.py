@@ -191,7 +191,7 @@ def test_symbol_matrix():
 
 @pytest.mark.parametrize("n, m", [(1, 1), (2, 3), (3, 2)])
 def test_block_inverse_numerically(n, m):
-    from kalman_course import gaussians
+    from kalman_course.core import gaussians
 
     rng = np.random.default_rng(10 * n + m)
     M = rng.normal(size=(n + m, n + m)) + 3 * np.eye(n + m)
@@ -205,7 +205,7 @@ def test_block_inverse_numerically(n, m):
 
 @pytest.mark.parametrize("n, m", [(1, 1), (2, 1), (3, 2)])
 def test_conditioning_numerically(n, m):
-    from kalman_course import gaussians
+    from kalman_course.core import gaussians
 
     rng = np.random.default_rng(7 + n + m)
     J = random_spd(rng, n + m)
@@ -226,7 +226,7 @@ def test_conditioning_numerically(n, m):
 
 
 def test_linear_map_numerically():
-    from kalman_course import gaussians
+    from kalman_course.core import gaussians
 
     rng = np.random.default_rng(3)
     mu, Sxx, G, R = rng.normal(size=3), random_spd(rng, 3), rng.normal(size=(2, 3)), random_spd(rng, 2)
@@ -239,7 +239,7 @@ def test_linear_map_numerically():
 
 @pytest.mark.parametrize("n, m", [(2, 1), (2, 2), (4, 2)])
 def test_gain_minimises_the_trace_numerically(n, m):
-    from kalman_course import kf
+    from kalman_course.filters import kf
 
     rng = np.random.default_rng(100 + 10 * n + m)
     P, G, R = random_spd(rng, n), rng.normal(size=(m, n)), random_spd(rng, m)
@@ -266,7 +266,7 @@ def test_gain_minimises_the_trace_numerically(n, m):
 
 
 def test_kf_update_as_conditioning_numerically():
-    from kalman_course import kf
+    from kalman_course.filters import kf
 
     rng = np.random.default_rng(5)
     n, m, l = 4, 2, 3

@@ -1,10 +1,10 @@
-"""Tests of Umeyama alignment and ATE (kalman_course.trajectory)."""
+"""Tests of Umeyama alignment and ATE (kalman_course.evaluation.trajectory)."""
 
 import numpy as np
 import pytest
 
-from kalman_course import so3
-from kalman_course.trajectory import apply_alignment, ate_rmse, umeyama
+from kalman_course.core import so3
+from kalman_course.evaluation.trajectory import apply_alignment, ate_rmse, umeyama
 
 
 @pytest.fixture

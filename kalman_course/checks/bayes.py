@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from kalman_course import bayes
+from kalman_course.filters import bayes
 from kalman_course.checks.harness import CheckFailed, call, check, expect_close, expect_shape
 
 #: The corridor of chapter 01: 1 where a cell has a door, 0 where it is wall.

@@ -13,10 +13,12 @@ import types
 
 import numpy as np
 
-from kalman_course import consistency, eskf, metrics
+from kalman_course.chapters import consistency
+from kalman_course.filters import eskf
+from kalman_course.evaluation import metrics
 from kalman_course.checks.harness import CheckFailed, call, check, expect_close
 from kalman_course.data import load_kitti
-from kalman_course.eskf_config import load_config
+from kalman_course.filters.eskf_config import load_config
 
 #: The excerpt the checks run on, the outlier seed and the verdict cases (label, Q factor, R factor).
 EXCERPT = "cruise"

@@ -12,9 +12,10 @@ import functools
 
 import numpy as np
 
-from kalman_course import ekf, symbolic
+from kalman_course.filters import ekf
+from kalman_course import symbolic
 from kalman_course.checks.harness import CheckFailed, call, check, expect_close, expect_shape, expect_symmetric
-from kalman_course.motion import kitti_model_states
+from kalman_course.chapters.motion import kitti_model_states
 
 RADAR_EXCERPT = "turns"
 R_RADAR = np.diag([0.09, 0.0009, 0.09])

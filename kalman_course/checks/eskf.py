@@ -2,7 +2,7 @@
 
 States come from KITTI ground truth (tilted attitudes, real IMU readings) with made-up
 non-zero biases; F is also checked against a finite-difference Jacobian of one nominal
-step, and the whole run against :func:`kalman_course.eskf.run` on a 10 s slice of the
+step, and the whole run against :func:`kalman_course.filters.eskf.run` on a 10 s slice of the
 turns excerpt.
 """
 
@@ -12,11 +12,12 @@ import functools
 
 import numpy as np
 
-from kalman_course import eskf, so3
+from kalman_course.filters import eskf
+from kalman_course.core import so3
 from kalman_course.checks.harness import CheckFailed, call, check, expect_close, expect_shape, expect_symmetric
 from kalman_course.data import load_kitti
-from kalman_course.eskf import NominalState
-from kalman_course.eskf_config import load_config
+from kalman_course.filters.eskf import NominalState
+from kalman_course.filters.eskf_config import load_config
 
 #: The whole-run check: excerpt and length of the slice (s).
 RUN_EXCERPT, RUN_SECONDS = "turns", 10.0
@@ -324,7 +325,7 @@ def check_nominal_ekf_observation(align_quaternion):
 @check("nominal_ekf_jacobian")
 def check_nominal_ekf_jacobian(nominal_jacobian):
     """``nominal_jacobian(q, f, w, b_a, b_w)`` returns A = ∂ẋ/∂x (16, 16)."""
-    from kalman_course import nominal_ekf
+    from kalman_course.filters import nominal_ekf
 
     for x, f, w in _cases():
         q = so3.matrix_to_quat(x.rotation)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from kalman_course import gaussians
+from kalman_course.core import gaussians
 from kalman_course.checks.harness import CheckFailed, call, check, expect_close, expect_symmetric
 
 

@@ -1,8 +1,8 @@
 """Checks for chapter 07: the three midpoint steps of IMU mechanisation, and a whole run.
 
 Each step is compared with a closed form on synthetic motion (constant rate, constant
-specific force) and with :func:`kalman_course.imu.midpoint_step` on KITTI samples; the
-whole run with :func:`kalman_course.imu.dead_reckon` on a KITTI slice and with the exact
+specific force) and with :func:`kalman_course.core.imu.midpoint_step` on KITTI samples; the
+whole run with :func:`kalman_course.core.imu.dead_reckon` on a KITTI slice and with the exact
 truth of a synthetic trajectory.
 """
 
@@ -12,10 +12,10 @@ import functools
 
 import numpy as np
 
-from kalman_course import so3
+from kalman_course.core import so3
 from kalman_course.checks.harness import CheckFailed, call, check, expect_close, expect_shape
 from kalman_course.data import imu_trajectory, load_kitti
-from kalman_course.imu import NavState, dead_reckon
+from kalman_course.core.imu import NavState, dead_reckon
 
 #: The KITTI slice the whole-run check integrates: excerpt, first sample, number of samples.
 RUN_SLICE = ("turns", 1000, 500)

@@ -10,7 +10,8 @@ import functools
 
 import numpy as np
 
-from kalman_course import kf, symbolic
+from kalman_course.filters import kf
+from kalman_course import symbolic
 from kalman_course.checks.harness import CheckFailed, call, check, expect_close, expect_shape, expect_symmetric
 from kalman_course.data import load_kitti
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from kalman_course import symbolic
 from kalman_course.checks.harness import CheckFailed, call, check, expect_close, expect_shape
-from kalman_course.motion import kitti_model_states
+from kalman_course.chapters.motion import kitti_model_states
 
 EXCERPTS = ("turns", "stop_go")
 STEPS = (0.1, 1.0)

@@ -37,7 +37,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from kalman_course import so3
+from kalman_course.core import so3
 from kalman_course.data.kitti import (EXCERPTS, SCHEMA_VERSION, kitti_dir, simulate_gnss,
                                       simulate_lidar_poses)
 

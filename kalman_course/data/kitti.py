@@ -28,9 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
-from kalman_course import so3
-from kalman_course.validation import as_scalar, as_seed
-from kalman_course.imu import NavState, NavTrajectory
+from kalman_course.core import so3
+from kalman_course.core.validation import as_scalar, as_seed
+from kalman_course.core.imu import NavState, NavTrajectory
 
 __all__ = [
     "EXCERPTS", "SCHEMA_VERSION", "ImuData", "GnssData", "TruthData", "LidarData", "SlamData",

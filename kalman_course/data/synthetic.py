@@ -19,10 +19,10 @@ from typing import Iterator
 
 import numpy as np
 
-from kalman_course import so3
+from kalman_course.core import so3
 from kalman_course.data.kitti import ImuData
-from kalman_course.imu import NavState, dead_reckon
-from kalman_course.validation import as_covariance, as_scalar, as_seed, as_vector
+from kalman_course.core.imu import NavState, dead_reckon
+from kalman_course.core.validation import as_covariance, as_scalar, as_seed, as_vector
 
 __all__ = [
     "RandomWalk1D", "random_walk_1d", "CVTarget", "cv_target", "Measurement", "CTRVScenario",
@@ -434,7 +434,7 @@ class ImuScenario:
 
     The clean readings are the exact specific force and angular rate of a smooth analytic
     motion at the sample times; the truth is what the course's midpoint mechanisation
-    (:func:`kalman_course.imu.dead_reckon`) makes of them from the true initial state, so
+    (:func:`kalman_course.core.imu.dead_reckon`) makes of them from the true initial state, so
     integrating ``imu_clean`` reproduces the truth to round-off. (It differs from the
     analytic motion by the integration error, millimetres after a minute at 100 Hz.)
 

@@ -19,7 +19,7 @@ from pathlib import Path
 
 
 def _cmd_execute(args: argparse.Namespace) -> int:
-    from kalman_course.notebooks import execute_notebook
+    from kalman_course.tooling.notebooks import execute_notebook
 
     paths = _expand_notebooks(args.paths)
     if not paths:
@@ -53,7 +53,7 @@ def grading_summary(line: str) -> str:
 
 
 def _cmd_build(args: argparse.Namespace) -> int:
-    from kalman_course.authoring import build_all
+    from kalman_course.tooling.authoring import build_all
 
     changed = build_all(args.solutions, args.exercises, check=args.check)
     if args.check:
@@ -71,7 +71,7 @@ def _cmd_build(args: argparse.Namespace) -> int:
 
 
 def _cmd_grade(args: argparse.Namespace) -> int:
-    from kalman_course import grading
+    from kalman_course.tooling import grading
 
     submissions = []
     for item in args.paths:
@@ -112,7 +112,7 @@ def _cmd_grade(args: argparse.Namespace) -> int:
 def _cmd_export(args: argparse.Namespace) -> int:
     import time
 
-    from kalman_course import export
+    from kalman_course.tooling import export
 
     start = time.perf_counter()
     if args.what == "derivations":
@@ -198,7 +198,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, help="folder to write to")
     p.set_defaults(func=_cmd_export)
 
-    from kalman_course import bench
+    from kalman_course.tooling import bench
 
     p = sub.add_parser("bench", help="measure speed, accuracy and consistency; write benchmarks/RESULTS.md")
     bench.add_arguments(p)

@@ -21,7 +21,7 @@ Three :class:`~kalman_course.symbolic.Derivation` objects, each proved by ``veri
 
 ``results`` hold the symbolic F_t (15 × 15) and B_t (15 × 12) built from the derived rows,
 with :func:`error_dynamics_function` turning F_t into a numpy function (``lambdify``) that
-the tests compare with :func:`kalman_course.eskf.error_dynamics`.
+the tests compare with :func:`kalman_course.filters.eskf.error_dynamics`.
 
 :func:`kalman_course.symbolic.derivations` lists them after the core derivations, so the
 course's export includes them.

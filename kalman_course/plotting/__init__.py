@@ -522,7 +522,7 @@ def plot_conditioning(mean, cov, y_obs, cond_mean, cond_var, *, samples=None, n_
     """
     import matplotlib.pyplot as plt
 
-    from kalman_course.gaussians import gaussian_pdf
+    from kalman_course.core.gaussians import gaussian_pdf
 
     mean = _vector(mean, "mean", n=2)
     cov = _covariance2(cov)

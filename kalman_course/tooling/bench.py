@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_OUTPUT = ROOT / "benchmarks" / "RESULTS.md"
 EXCERPTS = ("cruise", "turns", "stop_go")
 KF_TARGET = 1.0          # ratio to FilterPy per step
@@ -82,7 +82,7 @@ def kf_speed(n_steps: int = 2000, repeats: int = 7, dim: int = 2) -> dict:
     pairs' ratios. Returns a dict of per-step medians (s); ``filterpy`` and ``ratio`` are
     None if FilterPy is not installed.
     """
-    from kalman_course import kf
+    from kalman_course.filters import kf
     from kalman_course.data import cv_target
 
     sc = cv_target(n_steps, 0.1, 1.0, 0.5, seed=0, dim=dim)
@@ -130,7 +130,8 @@ def kf_speed(n_steps: int = 2000, repeats: int = 7, dim: int = 2) -> dict:
 
 def ekf_update_speed(repeats: int = 3000) -> float:
     """Median seconds of one validated EKF update (radar on a 5-state CTRV state, Joseph)."""
-    from kalman_course import ekf, symbolic
+    from kalman_course.filters import ekf
+    from kalman_course import symbolic
 
     median_time = _script("ekf_report")._median_time
     x = np.array([5.0, 2.0, 5.0, 0.5, 0.1])
@@ -147,7 +148,7 @@ def ekf_update_speed(repeats: int = 3000) -> float:
 
 def eskf_speed(repeats: int = 5) -> tuple[list[float], list[float]]:
     """Wall-clock and CPU seconds of the ESKF over all of sequence 00 with lidar."""
-    from kalman_course.eskf_config import load_config
+    from kalman_course.filters.eskf_config import load_config
 
     return _script("eskf_accuracy").speed(load_config("kitti_lidar"), repeats)
 
@@ -156,14 +157,14 @@ def notebook_time(path: Path, timeout: int = 600) -> float:
     """Seconds to execute a notebook in a fresh kernel (its file is left untouched)."""
     import nbformat
 
-    from kalman_course.notebooks import run_cells
+    from kalman_course.tooling.notebooks import run_cells
 
     return run_cells(nbformat.read(path, as_version=4), path.parent, timeout=timeout)
 
 
 def grading_time(paths) -> list[tuple[str, float, int, int]]:
     """(file, seconds, points, possible) of grading each notebook against exercises/."""
-    from kalman_course import grading
+    from kalman_course.tooling import grading
 
     release = grading.load_release(ROOT / "exercises")
     rows = []
@@ -180,9 +181,11 @@ def grading_time(paths) -> list[tuple[str, float, int, int]]:
 
 def excerpt_accuracy(name: str) -> dict:
     """Position APE (m), attitude APE (deg), NEES and NIS figures of each method on one excerpt."""
-    from kalman_course import consistency, eskf, metrics
+    from kalman_course.chapters import consistency
+    from kalman_course.filters import eskf
+    from kalman_course.evaluation import metrics
     from kalman_course.data import load_kitti
-    from kalman_course.eskf_config import load_config
+    from kalman_course.filters.eskf_config import load_config
 
     acc = _script("eskf_accuracy")
     ex = load_kitti(name)
@@ -221,7 +224,7 @@ def excerpt_accuracy(name: str) -> dict:
 
 def seq00_ate() -> list[tuple[str, float]]:
     """ATE of the estimates over all of sequence 00 (``eskf_accuracy.seq00_rows``)."""
-    from kalman_course.eskf_config import load_config
+    from kalman_course.filters.eskf_config import load_config
 
     return _script("eskf_accuracy").seq00_rows(load_config("kitti_lidar"), load_config("kitti_gnss"))
 
@@ -358,7 +361,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of ``python -m kalman_course.bench`` and ``python -m benchmarks``."""
+    """Entry point of ``python -m kalman_course.tooling.bench`` and ``python -m benchmarks``."""
     parser = argparse.ArgumentParser(prog="kalman-course bench", description=__doc__.split("\n")[0])
     add_arguments(parser)
     return run(parser.parse_args(argv))

@@ -3,8 +3,8 @@
 A filter is *consistent* when its errors are as large as its covariance says: the NEES
 :math:`e^T P^{-1} e` (e = estimate − truth) and the NIS :math:`\\nu^T S^{-1} \\nu` are then
 chi-square with as many degrees of freedom as the vector has components. This module
-builds the chapter's experiments on top of :mod:`kalman_course.metrics` (the statistics
-and their chi-square bounds) and :mod:`kalman_course.eskf` (the filter):
+builds the chapter's experiments on top of :mod:`kalman_course.evaluation.metrics` (the statistics
+and their chi-square bounds) and :mod:`kalman_course.filters.eskf` (the filter):
 
 - :func:`summarise` — mean of a NEES/NIS record, its two-sided bounds and the share of
   single values inside the per-step bounds, as one :class:`Consistency` record;
@@ -28,9 +28,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kalman_course import eskf, metrics, so3, validation
+from kalman_course.filters import eskf
+from kalman_course.evaluation import metrics
+from kalman_course.core import so3, validation
 from kalman_course.data import imu_trajectory, simulate_lidar_poses
-from kalman_course.eskf_config import EskfConfig, load_config
+from kalman_course.filters.eskf_config import EskfConfig, load_config
 
 __all__ = [
     "Consistency", "summarise", "verdict", "VERDICTS",
@@ -419,7 +421,7 @@ def run_gated(excerpt, lidar=None, config="kitti_lidar", confidence: float | Non
     """Run the ESKF on an excerpt with lidar poses, rejecting those that fail the χ² gate.
 
     Each pose is tested against the filter's prior at its time, as a sequential gated
-    filter would. The fast batch runner :func:`kalman_course.eskf.run` has no gate, so the
+    filter would. The fast batch runner :func:`kalman_course.filters.eskf.run` has no gate, so the
     sequential decision is found by re-running it: start by accepting every pose, find the
     first pose whose gate decision disagrees with that choice, flip it (and the disagreeing
     poses right after it) and run again. A choice that agrees with every decision it leads
@@ -498,7 +500,7 @@ def joseph_update(P, K, G, R) -> np.ndarray:
 def symmetrise(P) -> np.ndarray:
     """½ (P + Pᵀ): removes the antisymmetric part that round-off or a wrong form left.
 
-    :func:`kalman_course.validation.symmetrise` (what every filter in the course calls),
+    :func:`kalman_course.core.validation.symmetrise` (what every filter in the course calls),
     for any array_like.
     """
     return validation.symmetrise(np.asarray(P, dtype=float))

@@ -24,8 +24,8 @@ from pathlib import Path
 
 import nbformat
 
-from kalman_course.authoring import CHECK_OUTPUT_TAG, GRADER_TAG, IGNORE_OUTPUT_TAG, grader_info
-from kalman_course.review import review_flags
+from kalman_course.tooling.authoring import CHECK_OUTPUT_TAG, GRADER_TAG, IGNORE_OUTPUT_TAG, grader_info
+from kalman_course.tooling.review import review_flags
 
 ANSI_RE = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
 EXCEPTION_LINE_RE = re.compile(r"^\s*([A-Za-z_][\w.]*(?:Error|Failed|Exception|Interrupt)): (.+)$", re.M)
@@ -204,7 +204,7 @@ def run_notebooks(nbs: list, *, timeout: float = 120.0, jobs: int = 1) -> list[t
             chunk = names[job::jobs]
             results = tmp / f"results_{job}.json"
             cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--color=no",
-                   "-p", "kalman_course.nbval_results", "--nbval-lax", "--nbval-current-env",
+                   "-p", "kalman_course.tooling.nbval_results", "--nbval-lax", "--nbval-current-env",
                    f"--nbval-cell-timeout={timeout:g}", "-c", str(tmp / "pytest.ini"),
                    "--rootdir", str(tmp), *chunk]
             env = dict(os.environ, KALMAN_COURSE_RESULTS=str(results))

@@ -23,13 +23,13 @@ Kinds
     the standard deviation of one IMU reading at the file's ``imu_rate_hz``; converted to
     a density as ``std / √imu_rate_hz``.
 
-The filter (:mod:`kalman_course.eskf`) only ever sees SI values (m, m/s, rad, densities);
+The filter (:mod:`kalman_course.filters.eskf`) only ever sees SI values (m, m/s, rad, densities);
 :func:`load_config` converts degrees and per-sample numbers once, here.
 
 Shipped files (``kalman_course/eskf_configs/``): ``kitti_lidar.yaml`` (10 Hz lidar
 map-matching poses) and ``kitti_gnss.yaml`` (1 Hz GNSS positions). Load them by name::
 
-    from kalman_course.eskf_config import load_config
+    from kalman_course.filters.eskf_config import load_config
     cfg = load_config("kitti_lidar")
     print(cfg.describe())
 """

@@ -9,7 +9,7 @@ reads every non-grader code cell that differs from the released exercise and rep
 - an import of a function the learner must write (one defined in a released cell with a
   ``# fix this`` line), or a binding or call of such a function through a module
   attribute (``histogram_update = bayes.histogram_update``);
-- an import of the grading machinery (``kalman_course.checks``, ``kalman_course.grading``,
+- an import of the grading machinery (``kalman_course.checks``, ``kalman_course.tooling.grading``,
   nbval) that the release does not make, an assignment to an attribute of it, or
   ``setattr`` on it;
 - an import of ``importlib`` or ``builtins``, or use of ``__builtins__`` or ``sys.modules``.
@@ -22,12 +22,12 @@ from __future__ import annotations
 
 import ast
 
-from kalman_course.authoring import FIX_THIS, grader_info
+from kalman_course.tooling.authoring import FIX_THIS, grader_info
 
 __all__ = ["review_flags", "MACHINERY"]
 
 #: Modules whose import by learner code is flagged: they run or report the checks.
-MACHINERY = ("kalman_course.checks", "kalman_course.grading", "kalman_course.nbval_results", "nbval")
+MACHINERY = ("kalman_course.checks", "kalman_course.tooling.grading", "kalman_course.tooling.nbval_results", "nbval")
 _ESCAPES = ("importlib", "builtins", "__builtins__")
 
 

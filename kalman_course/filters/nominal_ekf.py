@@ -31,8 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from kalman_course import so3
-from kalman_course.eskf_config import EskfConfig, load_config
+from kalman_course.core import so3
+from kalman_course.filters.eskf_config import EskfConfig, load_config
 
 __all__ = ["rotate_jacobian", "quat_xi", "quat_omega", "continuous_jacobian", "noise_jacobian", "propagate",
            "NominalEkfResult", "run_nominal_ekf", "REGULARISER"]
@@ -153,7 +153,7 @@ def run_nominal_ekf(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.80
                     start: int = 0, t_end: float | None = None) -> NominalEkfResult:
     """Run the nominal-state EKF on IMU samples with lidar pose updates.
 
-    Same inputs and noise settings as :func:`kalman_course.eskf.run` (the attitude prior and
+    Same inputs and noise settings as :func:`kalman_course.filters.eskf.run` (the attitude prior and
     noise, given for δθ in the configuration, are mapped to the quaternion through Ξ(q));
     an observation between two IMU samples is handled the same way (interpolated reading,
     exact propagation to its time). Biases follow random walks.

@@ -26,7 +26,7 @@ import math
 
 import numpy as np
 
-from kalman_course.validation import as_covariance, as_matrix, as_vector, symmetrise
+from kalman_course.core.validation import as_covariance, as_matrix, as_vector, symmetrise
 
 __all__ = [
     "gaussian_pdf",

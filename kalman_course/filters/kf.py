@@ -29,7 +29,7 @@ import numpy as np
 from numpy import dot
 from numpy.linalg import solve
 
-from kalman_course.validation import as_covariance, as_matrix, as_vector, symmetrise
+from kalman_course.core.validation import as_covariance, as_matrix, as_vector, symmetrise
 
 __all__ = [
     "kf_predict",
@@ -104,7 +104,7 @@ class KFHistory:
 # The public steps sit in learners' loops, so their checks have a fast path: a float64
 # array of the right shape that passes the same tests as the shared helpers (finite,
 # exactly symmetric, non-negative diagonal, Cholesky for R) is accepted after a few cheap
-# numpy calls. Anything else goes to the shared helper in kalman_course.validation, which
+# numpy calls. Anything else goes to the shared helper in kalman_course.core.validation, which
 # applies the full rules (e.g. symmetry within a relative tolerance) and raises the
 # canonical ValueError naming the argument.
 # ---------------------------------------------------------------------------------------

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kalman_course import so3
-from kalman_course.validation import as_matrix, as_vector
+from kalman_course.core import so3
+from kalman_course.core.validation import as_matrix, as_vector
 
 __all__ = ["NavState", "NavTrajectory", "midpoint_step", "dead_reckon"]
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from kalman_course.validation import as_matrix
+from kalman_course.core.validation import as_matrix
 
 __all__ = ["umeyama", "apply_alignment", "ate_rmse"]
 

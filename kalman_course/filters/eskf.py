@@ -5,7 +5,7 @@ State and conventions (chapter 08, following the lecture)
 Nominal state x = (p, v, R, b_a, b_ω): position (m) and velocity (m/s) in the navigation
 frame, attitude R = R_nb (body → nav), accelerometer bias b_a (m/s²) and gyroscope bias
 b_ω (rad/s). The nominal state is propagated by the midpoint mechanisation of
-:mod:`kalman_course.imu` and carries no uncertainty; the filter estimates the error
+:mod:`kalman_course.core.imu` and carries no uncertainty; the filter estimates the error
 
     δx = [δp, δv, δθ, δb_a, δb_ω]  (15),   error = nominal − true:
     δp = p̌ − p,  δv = v̌ − v,  Ř = R Exp(δθ),  δb = b̌ − b.
@@ -47,9 +47,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from kalman_course import so3
-from kalman_course.eskf_config import EskfConfig, load_config
-from kalman_course.validation import as_matrix, as_vector
+from kalman_course.core import so3
+from kalman_course.filters.eskf_config import EskfConfig, load_config
+from kalman_course.core.validation import as_matrix, as_vector
 
 __all__ = [
     "NominalState", "ESKF", "EskfResult", "run", "evaluate",

@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from kalman_course.validation import SYMMETRY_RTOL, as_covariance, as_vector
+from kalman_course.core.validation import SYMMETRY_RTOL, as_covariance, as_vector
 
 __all__ = [
     "rmse",
@@ -177,7 +177,7 @@ def nis(innovation, S):
     ----------
     innovation : array_like, shape (m,) or (N, m)
         Innovation :math:`\\nu = y - G\\check x`, one row per step for a batch. Rows
-        containing NaN (steps without a measurement, as :func:`kalman_course.kf.run_kf`
+        containing NaN (steps without a measurement, as :func:`kalman_course.filters.kf.run_kf`
         records them) give NaN.
     S : array_like, shape (m, m) or (N, m, m)
         Innovation covariance, symmetric positive definite. Rows of S belonging to NaN

@@ -1,6 +1,6 @@
 """A pytest plugin that records nbval's per-cell results as JSON for the grader.
 
-``kalman-course grade`` runs ``pytest -p kalman_course.nbval_results --nbval-lax ...`` in
+``kalman-course grade`` runs ``pytest -p kalman_course.tooling.nbval_results --nbval-lax ...`` in
 a subprocess with ``KALMAN_COURSE_RESULTS`` naming the output file. Each entry holds the
 notebook's file name, the cell id, its index among code cells, whether it passed and, if not, nbval's report.
 """

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import nbformat
 
-from kalman_course.notebooks import normalise, notebook_text
+from kalman_course.tooling.notebooks import normalise, notebook_text
 
 BEGIN_RE = re.compile(r"^(?P<indent>[ \t]*)# BEGIN SOLUTION (?P<check>[A-Za-z_][\w]*)[ \t]*$")
 STUB_RE = re.compile(r"^[ \t]*# STUB[ \t]*$")

@@ -41,8 +41,8 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from kalman_course import symbolic
-from kalman_course.kf import KFUpdate, _covariance, _matrix, _observation_noise, _vector
-from kalman_course.validation import symmetrise
+from kalman_course.filters.kf import KFUpdate, _covariance, _matrix, _observation_noise, _vector
+from kalman_course.core.validation import symmetrise
 
 __all__ = [
     "ekf_predict", "ekf_update", "iekf_update", "IEKFUpdate", "KFUpdate",
@@ -640,7 +640,7 @@ class BeaconResult:
 def run_beacon_filter(scenario: BeaconScenario, *, iterated=False, sigma_a=2.0, max_iter=20,
                       tol=1e-6) -> BeaconResult:
     """CV EKF (or IEKF) with range–bearing updates to the nearest beacons, Joseph form."""
-    from kalman_course.metrics import nees
+    from kalman_course.evaluation.metrics import nees
 
     x, P = scenario.x0.copy(), scenario.P0.copy()
     N = len(scenario.t)

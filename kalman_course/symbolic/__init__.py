@@ -891,7 +891,7 @@ _BUILDERS: tuple[Callable[[], Derivation], ...] = (
 
 def _all_builders() -> tuple:
     """This module's builders, then the ESKF's (imported late: that module builds on this one)."""
-    from kalman_course.eskf_derivation import BUILDERS as eskf_builders
+    from kalman_course.symbolic.eskf import BUILDERS as eskf_builders
 
     return _BUILDERS + tuple(eskf_builders)
 
@@ -1074,7 +1074,7 @@ def cv_observation_matrix(dim: int = 1) -> np.ndarray:
 #   ctra [p_x, p_y, v, ψ, ω, a]          noise w = [ν_j, ν_ψ̈]        (m/s³, rad/s²)
 # The CTRV order and noise are those of ``kalman_course.data.ctrv_step``.
 
-from kalman_course.validation import as_vector  # noqa: E402  (below symbolic in the layering)
+from kalman_course.core.validation import as_vector  # noqa: E402  (below symbolic in the layering)
 
 #: The planar motion models, in the order the course introduces them.
 MOTION_MODELS = ("cv", "ca", "ctrv", "ctra")

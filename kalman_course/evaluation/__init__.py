@@ -1,0 +1,4 @@
+"""Evaluation layer: how estimates are scored. Imports ``core`` only.
+
+``metrics`` (RMSE, NEES, NIS, chi-square bounds) and ``trajectory`` (alignment, ATE).
+"""
