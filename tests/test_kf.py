@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from filterpy.kalman import KalmanFilter
 
-from kalman_course.filters.kf import (KFHistory, KFUpdate, _gain, innovation_covariance, kf_gain,
+from kalman_course.filters.kf import (KFHistory, KFUpdate, innovation_covariance, kf_gain,
                               kf_predict, kf_update, run_kf)
-from kalman_course.core.validation import symmetrise
+from kalman_course.core.linalg import gain as _gain, symmetrise
 
 TOL = dict(rtol=1e-10, atol=1e-10)
 

@@ -30,7 +30,7 @@ import numpy as np
 
 from kalman_course.filters import eskf
 from kalman_course.evaluation import metrics
-from kalman_course.core import so3, validation
+from kalman_course.core import linalg, so3, validation
 from kalman_course.data import imu_trajectory, simulate_lidar_poses
 from kalman_course.filters.eskf_config import EskfConfig, load_config
 
@@ -500,10 +500,10 @@ def joseph_update(P, K, G, R) -> np.ndarray:
 def symmetrise(P) -> np.ndarray:
     """½ (P + Pᵀ): removes the antisymmetric part that round-off or a wrong form left.
 
-    :func:`kalman_course.core.validation.symmetrise` (what every filter in the course calls),
+    :func:`kalman_course.core.linalg.symmetrise` (what every filter in the course calls),
     for any array_like.
     """
-    return validation.symmetrise(np.asarray(P, dtype=float))
+    return linalg.symmetrise(np.asarray(P, dtype=float))
 
 
 def covariance_health(P) -> tuple[float, float]:

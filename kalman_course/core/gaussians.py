@@ -26,7 +26,8 @@ import math
 
 import numpy as np
 
-from kalman_course.core.validation import as_covariance, as_matrix, as_vector, symmetrise
+from kalman_course.core.linalg import symmetrise
+from kalman_course.core.validation import as_covariance, as_matrix, as_vector
 
 __all__ = [
     "gaussian_pdf",

@@ -1,8 +1,15 @@
-"""Input validation shared by every filter module.
+"""Input validation shared by every public function of the package.
 
 Each helper takes the argument's *name* so that the error says which argument was wrong
 and what was expected, for example ``ValueError: P_hat must be symmetric (max |P - P.T| =
 0.3)``. Helpers return float arrays so callers can use them directly.
+
+The filters' public steps sit in learners' loops, so the array helpers have a fast path:
+a float64 ndarray of the right shape that passes the strict form of the rules (finite,
+exactly symmetric, non-negative diagonal, a Cholesky factor where positive definiteness
+is asked for) is returned as it is after a few cheap numpy calls. Anything else takes the
+full path, which converts, applies the rules with their tolerances and raises the
+ValueError naming the argument.
 """
 
 from __future__ import annotations
@@ -15,6 +22,9 @@ SYMMETRY_RTOL = 1e-9
 
 def as_vector(value, name: str, n: int | None = None) -> np.ndarray:
     """Return ``value`` as a finite 1-D float array of length ``n`` (any length if None)."""
+    if (type(value) is np.ndarray and value.dtype == np.float64 and value.ndim == 1
+            and (n is None or value.shape[0] == n) and np.isfinite(value).all()):
+        return value
     arr = np.asarray(value, dtype=float)
     if arr.ndim != 1:
         raise ValueError(f"{name} must be a 1-D vector of shape ({n if n is not None else 'n'},), "
@@ -47,6 +57,10 @@ def as_scalar(value, name: str, *, allow_zero: bool = False) -> float:
 
 def as_matrix(value, name: str, shape: tuple[int | None, int | None] = (None, None)) -> np.ndarray:
     """Return ``value`` as a finite 2-D float array whose shape matches ``shape`` (None = any)."""
+    if (type(value) is np.ndarray and value.dtype == np.float64 and value.ndim == 2
+            and shape[0] in (None, value.shape[0]) and shape[1] in (None, value.shape[1])
+            and np.isfinite(value).all()):
+        return value
     arr = np.asarray(value, dtype=float)
     rows, cols = shape
     expected = f"({rows if rows is not None else 'm'}, {cols if cols is not None else 'n'})"
@@ -80,6 +94,17 @@ def as_covariance(value, name: str, n: int | None = None, *, positive_definite: 
         If the matrix is not square, not of size n, not finite, not symmetric, has a
         negative diagonal, or (when requested) is not positive definite.
     """
+    if (type(value) is np.ndarray and value.dtype == np.float64 and value.ndim == 2
+            and value.shape[0] == value.shape[1] and value.shape[0] > 0
+            and (n is None or value.shape[0] == n) and np.isfinite(value).all()
+            and (value == value.T).all() and value.diagonal().min() >= 0):
+        if not positive_definite:
+            return value
+        try:
+            np.linalg.cholesky(value)
+            return value
+        except np.linalg.LinAlgError:
+            pass
     arr = np.asarray(value, dtype=float)
     if arr.ndim != 2 or arr.shape[0] != arr.shape[1]:
         raise ValueError(f"{name} must be a square covariance matrix, got shape {arr.shape}")
@@ -102,13 +127,25 @@ def as_covariance(value, name: str, n: int | None = None, *, positive_definite: 
     return arr
 
 
-def symmetrise(P: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-    """Return (P + Pᵀ)/2: removes the round-off asymmetry a covariance update leaves.
+def as_process_noise(Q, B, n: int) -> np.ndarray:
+    """Validate Q (and its Jacobian B) and return the state-space noise B Q Bᵀ, (n, n).
 
-    The result is exactly symmetric (floating-point addition commutes). ``out``, an array
-    of P's shape that does not overlap P, receives the result (a filter's history row),
-    which saves a copy inside a filter loop.
+    ``B`` None means Q is already (n, n) in state space. Q may be singular.
     """
-    out = np.add(P, P.T, out=out)
-    out *= 0.5
-    return out
+    if B is None:
+        return as_covariance(Q, "Q", n)
+    B = as_matrix(B, "B", (n, None))
+    Q = as_covariance(Q, "Q", B.shape[1])
+    return B @ Q @ B.T
+
+
+def as_observation_noise(R, C, m: int) -> np.ndarray:
+    """Validate R (and its Jacobian C) and return the measurement-space noise C R Cᵀ, (m, m).
+
+    ``C`` None means R is already (m, m). R must be positive definite.
+    """
+    if C is None:
+        return as_covariance(R, "R", m, positive_definite=True)
+    C = as_matrix(C, "C", (m, None))
+    R = as_covariance(R, "R", C.shape[1], positive_definite=True)
+    return C @ R @ C.T

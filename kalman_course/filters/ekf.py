@@ -41,8 +41,9 @@ from typing import Callable, NamedTuple
 import numpy as np
 
 from kalman_course import symbolic
-from kalman_course.filters.kf import KFUpdate, _covariance, _matrix, _observation_noise, _vector
-from kalman_course.core.validation import symmetrise
+from kalman_course.filters.kf import KFUpdate
+from kalman_course.core.linalg import symmetrise
+from kalman_course.core.validation import as_covariance, as_matrix, as_observation_noise, as_vector
 
 __all__ = [
     "ekf_predict", "ekf_update", "iekf_update", "IEKFUpdate", "KFUpdate",
@@ -112,7 +113,7 @@ def radar_residual(y, y_pred) -> np.ndarray:
 def _jacobian(value, x, name: str, shape) -> np.ndarray:
     """Evaluate a Jacobian given as a callable (of x) or as a matrix, and validate it."""
     J = value(x) if callable(value) else value
-    return _matrix(J if isinstance(J, np.ndarray) else np.asarray(J, dtype=float), name, shape)
+    return as_matrix(J if isinstance(J, np.ndarray) else np.asarray(J, dtype=float), name, shape)
 
 
 def ekf_predict(x_hat, P_hat, f: Callable, F, Q, B=None):
@@ -149,16 +150,16 @@ def ekf_predict(x_hat, P_hat, f: Callable, F, Q, B=None):
     """
     if not callable(f):
         raise ValueError("f must be a callable f(x) returning the predicted state")
-    x_hat = _vector(x_hat, "x_hat")
+    x_hat = as_vector(x_hat, "x_hat")
     n = x_hat.shape[0]
-    P_hat = _covariance(P_hat, "P_hat", n)
+    P_hat = as_covariance(P_hat, "P_hat", n)
     Fm = _jacobian(F, x_hat, "F", (n, n))
     if B is None:
-        BQBt = _covariance(Q, "Q", n)
+        BQBt = as_covariance(Q, "Q", n)
     else:
         Bm = _jacobian(B, x_hat, "B", (n, None))
-        BQBt = Bm @ _covariance(Q, "Q", Bm.shape[1]) @ Bm.T
-    x_check = _vector(np.asarray(f(x_hat), dtype=float), "f(x_hat)", n)
+        BQBt = Bm @ as_covariance(Q, "Q", Bm.shape[1]) @ Bm.T
+    x_check = as_vector(np.asarray(f(x_hat), dtype=float), "f(x_hat)", n)
     return x_check, symmetrise(Fm @ P_hat @ Fm.T + BQBt)
 
 
@@ -177,12 +178,12 @@ def _posterior_cov(P_check, G, K, CRCt, joseph):
 
 
 def _update_inputs(x_check, P_check, y, R, C, residual):
-    x_check = _vector(x_check, "x_check")
+    x_check = as_vector(x_check, "x_check")
     n = x_check.shape[0]
-    P_check = _covariance(P_check, "P_check", n)
-    y = _vector(y, "y")
+    P_check = as_covariance(P_check, "P_check", n)
+    y = as_vector(y, "y")
     m = y.shape[0]
-    CRCt = _observation_noise(R, C, m)
+    CRCt = as_observation_noise(R, C, m)
     if residual is None:
         residual = np.subtract
     elif not callable(residual):
@@ -191,7 +192,7 @@ def _update_inputs(x_check, P_check, y, R, C, residual):
 
 
 def _predicted_measurement(g, x, m):
-    return _vector(np.asarray(g(x), dtype=float), "g(x)", m)
+    return as_vector(np.asarray(g(x), dtype=float), "g(x)", m)
 
 
 def ekf_update(x_check, P_check, y, g: Callable, G, R, C=None, residual=None, joseph=False):

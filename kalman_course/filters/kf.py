@@ -27,9 +27,9 @@ from typing import NamedTuple
 
 import numpy as np
 from numpy import dot
-from numpy.linalg import solve
 
-from kalman_course.core.validation import as_covariance, as_matrix, as_vector, symmetrise
+from kalman_course.core.linalg import gain, innovation_covariance as _S, joseph_update, short_update, symmetrise
+from kalman_course.core.validation import as_covariance, as_matrix, as_observation_noise, as_process_noise, as_vector
 
 __all__ = [
     "kf_predict",
@@ -99,67 +99,6 @@ class KFHistory:
 
 
 # ---------------------------------------------------------------------------------------
-# validation
-#
-# The public steps sit in learners' loops, so their checks have a fast path: a float64
-# array of the right shape that passes the same tests as the shared helpers (finite,
-# exactly symmetric, non-negative diagonal, Cholesky for R) is accepted after a few cheap
-# numpy calls. Anything else goes to the shared helper in kalman_course.core.validation, which
-# applies the full rules (e.g. symmetry within a relative tolerance) and raises the
-# canonical ValueError naming the argument.
-# ---------------------------------------------------------------------------------------
-
-def _is_float_array(value, shape) -> bool:
-    return type(value) is np.ndarray and value.dtype == np.float64 and value.shape == shape
-
-
-def _vector(value, name: str, n: int | None = None) -> np.ndarray:
-    if (type(value) is np.ndarray and value.dtype == np.float64 and value.ndim == 1
-            and (n is None or value.shape[0] == n) and np.isfinite(value).all()):
-        return value
-    return as_vector(value, name, n)
-
-
-def _matrix(value, name: str, shape: tuple[int | None, int | None]) -> np.ndarray:
-    if (type(value) is np.ndarray and value.dtype == np.float64 and value.ndim == 2
-            and shape[0] in (None, value.shape[0]) and shape[1] in (None, value.shape[1])
-            and np.isfinite(value).all()):
-        return value
-    return as_matrix(value, name, shape)
-
-
-def _covariance(value, name: str, n: int, positive_definite: bool = False) -> np.ndarray:
-    if (_is_float_array(value, (n, n)) and n > 0 and np.isfinite(value).all()
-            and (value == value.T).all() and value.diagonal().min() >= 0):
-        if not positive_definite:
-            return value
-        try:
-            np.linalg.cholesky(value)
-            return value
-        except np.linalg.LinAlgError:
-            pass
-    return as_covariance(value, name, n, positive_definite=positive_definite)
-
-
-def _process_noise(Q, B, n: int) -> np.ndarray:
-    """Validate Q (and B) and return the state-space process noise B Q Bᵀ, shape (n, n)."""
-    if B is None:
-        return _covariance(Q, "Q", n)
-    B = _matrix(B, "B", (n, None))
-    Q = _covariance(Q, "Q", B.shape[1])
-    return B @ Q @ B.T
-
-
-def _observation_noise(R, C, m: int) -> np.ndarray:
-    """Validate R (and C) and return the measurement-space noise C R Cᵀ, shape (m, m)."""
-    if C is None:
-        return _covariance(R, "R", m, positive_definite=True)
-    C = _matrix(C, "C", (m, None))
-    R = _covariance(R, "R", C.shape[1], positive_definite=True)
-    return C @ R @ C.T
-
-
-# ---------------------------------------------------------------------------------------
 # unvalidated kernels: the equations, nothing else
 # ---------------------------------------------------------------------------------------
 
@@ -173,40 +112,20 @@ def _predict(x_hat, P_hat, F, BQBt, v, P_out=None):
     return x_check, symmetrise(P_check, P_out)
 
 
-def _gain(GP, S):
-    """K = P̌ Gᵀ S⁻¹, given GP = G P̌ (P̌ is symmetric, so P̌ Gᵀ = GPᵀ).
-
-    One or two measured components (a range, a 2-D position fix) use the closed form
-    S⁻¹ = 1/s or adj(S)/det(S): for so small an S, ``np.linalg.solve`` costs more in call
-    overhead than the whole rest of an update. A larger S is solved, never inverted.
-    """
-    m = S.shape[0]
-    if m == 1:
-        return GP.T / S[0, 0]
-    if m == 2:
-        (a, b), (c, d) = S.tolist()
-        det = a * d - b * c
-        if det > 0:                          # always when S is positive definite
-            S_inv = np.array([[d / det, -b / det], [-c / det, a / det]])
-            return dot(GP.T, S_inv)
-    return solve(S, GP).T                    # Kᵀ = S⁻¹ G P̌; reports a singular S
-
-
 def _update(x_check, P_check, y, G, CRCt, joseph, I, P_out=None):
     """The update equations; returns (x̂, P̂, innovation, S, K), P̂ written into ``P_out`` if
     given. ``I`` is the (n, n) identity, made once by the caller (``np.eye`` costs as much
     as a matrix product here)."""
     innovation = y - dot(G, x_check)                   # e = y - G x̌
     GP = dot(G, P_check)                               # G P̌, (m, n)
-    S = dot(GP, G.T) + CRCt                            # S = G P̌ Gᵀ + C R Cᵀ
-    K = _gain(GP, S)                                   # K = P̌ Gᵀ S⁻¹
+    S = _S(GP, G, CRCt)                                # S = G P̌ Gᵀ + C R Cᵀ
+    K = gain(GP, S)                                    # K = P̌ Gᵀ S⁻¹
     x_hat = x_check + dot(K, innovation)               # x̂ = x̌ + K e
-    if joseph:
-        I_KG = I - dot(K, G)                           # I - K G
-        P_hat = dot(dot(I_KG, P_check), I_KG.T) + dot(dot(K, CRCt), K.T)
-    else:
-        P_hat = P_check - dot(K, GP)                   # P̂ = (I - K G) P̌ = P̌ - K G P̌
-    return x_hat, symmetrise(P_hat, P_out), innovation, S, K
+    if joseph:                                         # P̂ = (I - K G) P̌ (I - K G)ᵀ + K C R Cᵀ Kᵀ
+        P_hat = joseph_update(P_check, K, G, CRCt, I, P_out)
+    else:                                              # P̂ = P̌ - K G P̌
+        P_hat = short_update(P_check, K, GP, P_out)
+    return x_hat, P_hat, innovation, S, K
 
 
 # ---------------------------------------------------------------------------------------
@@ -248,13 +167,13 @@ def kf_predict(x_hat, P_hat, F, Q, B=None, v=None):
     ValueError
         If a shape does not match or a covariance is not symmetric.
     """
-    x_hat = _vector(x_hat, "x_hat")
+    x_hat = as_vector(x_hat, "x_hat")
     n = x_hat.shape[0]
-    P_hat = _covariance(P_hat, "P_hat", n)
-    F = _matrix(F, "F", (n, n))
-    BQBt = _process_noise(Q, B, n)
+    P_hat = as_covariance(P_hat, "P_hat", n)
+    F = as_matrix(F, "F", (n, n))
+    BQBt = as_process_noise(Q, B, n)
     if v is not None:
-        v = _vector(v, "v", n)
+        v = as_vector(v, "v", n)
     return _predict(x_hat, P_hat, F, BQBt, v)
 
 
@@ -286,7 +205,7 @@ def innovation_covariance(P_check, G, R, C=None):
     """
     P_check = as_covariance(P_check, "P_check")
     G = as_matrix(G, "G", (None, P_check.shape[0]))
-    CRCt = _observation_noise(R, C, G.shape[0])
+    CRCt = as_observation_noise(R, C, G.shape[0])
     return symmetrise(G @ P_check @ G.T + CRCt)
 
 
@@ -321,7 +240,7 @@ def kf_gain(P_check, G, S):
     P_check = as_covariance(P_check, "P_check")
     G = as_matrix(G, "G", (None, P_check.shape[0]))
     S = as_covariance(S, "S", G.shape[0], positive_definite=True)
-    return _gain(G @ P_check, S)
+    return gain(G @ P_check, S)
 
 
 def kf_update(x_check, P_check, y, G, R, C=None, joseph=False):
@@ -366,13 +285,13 @@ def kf_update(x_check, P_check, y, G, R, C=None, joseph=False):
         If a shape does not match, ``P_check`` is not a symmetric covariance, or ``R`` is
         not symmetric positive definite.
     """
-    x_check = _vector(x_check, "x_check")
+    x_check = as_vector(x_check, "x_check")
     n = x_check.shape[0]
-    P_check = _covariance(P_check, "P_check", n)
-    y = _vector(y, "y")
+    P_check = as_covariance(P_check, "P_check", n)
+    y = as_vector(y, "y")
     m = y.shape[0]
-    G = _matrix(G, "G", (m, n))
-    CRCt = _observation_noise(R, C, m)
+    G = as_matrix(G, "G", (m, n))
+    CRCt = as_observation_noise(R, C, m)
     return KFUpdate(*_update(x_check, P_check, y, G, CRCt, bool(joseph), np.eye(n)))
 
 
@@ -433,10 +352,10 @@ def run_kf(x0, P0, F, Q, G, R, ys, *, B=None, vs=None, joseph=False):
     n = x0.shape[0]
     P0 = as_covariance(P0, "P0", n)
     F = as_matrix(F, "F", (n, n))
-    BQBt = _process_noise(Q, B, n)
+    BQBt = as_process_noise(Q, B, n)
     G = as_matrix(G, "G", (None, n))
     m = G.shape[0]
-    CRCt = _observation_noise(R, None, m)
+    CRCt = as_observation_noise(R, None, m)
 
     ys = np.asarray(ys, dtype=float)
     if ys.ndim != 2 or ys.shape[1] != m:

@@ -1,0 +1,78 @@
+"""The linear algebra every Kalman-type filter shares, each formula written once.
+
+Unvalidated kernels: callers validate at their public boundary (``core.validation``) and
+then call these inside their loops. Notation of the lecture: prior covariance P̌ (n, n),
+observation Jacobian G (m, n), observation noise in measurement space R (m, m) (already
+C R Cᵀ where an observation-noise Jacobian C is used), innovation covariance S (m, m),
+gain K (n, m).
+
+``np.dot`` is used because for these tiny matrices it has the least call overhead of
+numpy's products.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy import dot
+from numpy.linalg import solve
+
+__all__ = ["symmetrise", "innovation_covariance", "gain", "joseph_update", "short_update"]
+
+
+def symmetrise(P: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """Return (P + Pᵀ)/2: removes the round-off asymmetry a covariance update leaves.
+
+    The result is exactly symmetric (floating-point addition commutes). ``out``, an array
+    of P's shape that does not overlap P, receives the result (a filter's history row),
+    which saves a copy inside a filter loop.
+    """
+    out = np.add(P, P.T, out=out)
+    out *= 0.5
+    return out
+
+
+def innovation_covariance(GP: np.ndarray, G: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """S = G P̌ Gᵀ + R, given GP = G P̌ (m, n); returns (m, m)."""
+    return dot(GP, G.T) + R
+
+
+def gain(GP: np.ndarray, S: np.ndarray) -> np.ndarray:
+    """K = P̌ Gᵀ S⁻¹, given GP = G P̌ (m, n) and S (m, m); returns (n, m).
+
+    P̌ is symmetric, so P̌ Gᵀ = (G P̌)ᵀ. One or two measured components (a range, a 2-D
+    position fix) use the closed form S⁻¹ = 1/s or adj(S)/det(S): for so small an S,
+    ``np.linalg.solve`` costs more in call overhead than the rest of an update. A larger
+    S is solved, never inverted; a singular S raises ``numpy.linalg.LinAlgError``.
+    """
+    m = S.shape[0]
+    if m == 1:
+        return GP.T / S[0, 0]
+    if m == 2:
+        (a, b), (c, d) = S.tolist()
+        det = a * d - b * c
+        if det > 0:                          # always when S is positive definite
+            S_inv = np.array([[d / det, -b / det], [-c / det, a / det]])
+            return dot(GP.T, S_inv)
+    return solve(S, GP).T                    # Kᵀ = S⁻¹ G P̌; reports a singular S
+
+
+def joseph_update(P_check: np.ndarray, K: np.ndarray, G: np.ndarray, R: np.ndarray,
+                  I: np.ndarray | None = None, out: np.ndarray | None = None) -> np.ndarray:
+    """P̂ = (I − K G) P̌ (I − K G)ᵀ + K R Kᵀ, symmetrised.
+
+    Right for any gain K, and positive semi-definite by construction. ``I``, the (n, n)
+    identity, may be passed in by a loop that made it once; ``out`` receives P̂.
+    """
+    if I is None:
+        I = np.eye(P_check.shape[0])
+    I_KG = I - dot(K, G)
+    return symmetrise(dot(dot(I_KG, P_check), I_KG.T) + dot(dot(K, R), K.T), out)
+
+
+def short_update(P_check: np.ndarray, K: np.ndarray, GP: np.ndarray,
+                 out: np.ndarray | None = None) -> np.ndarray:
+    """P̂ = (I − K G) P̌ = P̌ − K (G P̌), given GP = G P̌, symmetrised.
+
+    Right only for the optimal gain; cheaper than :func:`joseph_update`.
+    """
+    return symmetrise(P_check - dot(K, GP), out)
