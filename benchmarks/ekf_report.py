@@ -20,9 +20,12 @@ import time
 
 import numpy as np
 
-from kalman_course.filters import ekf
 from kalman_course import symbolic
-from kalman_course.data import ctrv_lidar_radar, load_kitti
+from kalman_course.chapters import beacons, lidar_radar
+from kalman_course.chapters.lidar_radar import ctrv_lidar_radar
+from kalman_course.data import load_kitti
+from kalman_course.filters import ekf
+from kalman_course.tooling.bench import median_time
 
 TARGET_POS, TARGET_VEL = 0.11, 0.52
 
@@ -33,10 +36,10 @@ def lidar_radar_table() -> None:
     print(f"   {'':14} {'px [m]':>8} {'py [m]':>8} {'vx [m/s]':>9} {'vy [m/s]':>9}")
     for name, kwargs in (("lidar + radar", {}), ("lidar only", {"use_radar": False}),
                          ("radar only", {"use_lidar": False}), ("IEKF (radar)", {"iterated": True})):
-        r = ekf.fuse_lidar_radar(sc, **kwargs).rmse
+        r = lidar_radar.fuse_lidar_radar(sc, **kwargs).rmse
         print(f"   {name:14} {r['px']:8.3f} {r['py']:8.3f} {r['vx']:9.3f} {r['vy']:9.3f}")
     print(f"   {'target':14} {TARGET_POS:8.3f} {TARGET_POS:8.3f} {TARGET_VEL:9.3f} {TARGET_VEL:9.3f}")
-    rows = np.array([[ekf.fuse_lidar_radar(ctrv_lidar_radar(seed)).rmse[k] for k in ("px", "py", "vx", "vy")]
+    rows = np.array([[lidar_radar.fuse_lidar_radar(ctrv_lidar_radar(seed)).rmse[k] for k in ("px", "py", "vx", "vy")]
                      for seed in range(10)])
     ok = (rows[:, :2].max(axis=1) <= TARGET_POS) & (rows[:, 2:].max(axis=1) <= TARGET_VEL)
     print(f"   seeds 0-9, fused: median {np.array2string(np.median(rows, axis=0), precision=3)}, "
@@ -48,14 +51,14 @@ def beacon_table() -> None:
     print(f"   {'case':22} {'filter':6} {'pos RMSE [m]':>13} {'mean NEES':>10} {'iter/update':>12}")
     for case, kwargs in (("precise, near (seed 1)", {}),
                          ("far beacons (100 m)", {"offset": 100.0, "sigma_range": 0.5})):
-        sc = ekf.kitti_beacons("turns", 1, **kwargs)
+        sc = beacons.kitti_beacons("turns", 1, **kwargs)
         for name, iterated in (("EKF", False), ("IEKF", True)):
-            r = ekf.run_beacon_filter(sc, iterated=iterated)
+            r = beacons.run_beacon_filter(sc, iterated=iterated)
             print(f"   {case:22} {name:6} {r.position_rmse:13.3f} {r.mean_nees:10.2f} {r.iterations.mean():12.2f}")
     wins = 0
     for seed in range(10):
-        sc = ekf.kitti_beacons("turns", seed)
-        e, i = ekf.run_beacon_filter(sc), ekf.run_beacon_filter(sc, iterated=True)
+        sc = beacons.kitti_beacons("turns", seed)
+        e, i = beacons.run_beacon_filter(sc), beacons.run_beacon_filter(sc, iterated=True)
         wins += i.position_rmse < 0.5 * e.position_rmse
     print(f"   seeds 0-9 (near beacons): the IEKF halves the EKF's RMSE in {wins}/10")
 
@@ -64,19 +67,8 @@ def kitti_ctrv_table() -> None:
     print("\n3. CTRV EKF on KITTI, 1 Hz GNSS (sigma 1 m) + gyro yaw rate: horizontal RMSE")
     print(f"   {'excerpt':8} {'GNSS [m]':>9} {'EKF at fixes [m]':>17} {'EKF all steps [m]':>18}")
     for name in ("cruise", "turns", "stop_go"):
-        r = ekf.run_kitti_ctrv(load_kitti(name))
+        r = lidar_radar.run_kitti_ctrv(load_kitti(name))
         print(f"   {name:8} {r.gnss_rmse:9.3f} {r.ekf_rmse:17.3f} {r.ekf_rmse_all:18.3f}")
-
-
-def _median_time(fn, repeats: int = 3000) -> float:
-    for _ in range(100):
-        fn()
-    times = np.empty(repeats)
-    for i in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times[i] = time.perf_counter() - t0
-    return float(np.median(times))
 
 
 def timing() -> None:
@@ -100,12 +92,12 @@ def timing() -> None:
                         symbolic.ctrv_noise_jacobian(x, dt))
 
     print("\n4. Median wall time per call (5-state CTRV, radar, SymPy-lambdified models, validated API)")
-    print(f"   EKF update (radar, Joseph)   {_median_time(update) * 1e6:8.1f} us")
-    print(f"   IEKF update (radar, Joseph)  {_median_time(iterated) * 1e6:8.1f} us")
-    print(f"   EKF predict (CTRV, F and B)  {_median_time(predict) * 1e6:8.1f} us")
+    print(f"   EKF update (radar, Joseph)   {median_time(update) * 1e6:8.1f} us")
+    print(f"   IEKF update (radar, Joseph)  {median_time(iterated) * 1e6:8.1f} us")
+    print(f"   EKF predict (CTRV, F and B)  {median_time(predict) * 1e6:8.1f} us")
     sc = ctrv_lidar_radar(seed=0)
     t0 = time.perf_counter()
-    ekf.fuse_lidar_radar(sc)
+    lidar_radar.fuse_lidar_radar(sc)
     print(f"   whole lidar + radar run ({len(sc)} measurements): {time.perf_counter() - t0:.3f} s")
 
 

@@ -28,7 +28,6 @@ import os
 import statistics
 import sys
 import time
-import types
 
 import numpy as np
 
@@ -36,7 +35,9 @@ from kalman_course.filters import eskf
 from kalman_course.data import load_kitti, simulate_gnss, simulate_lidar_poses
 from kalman_course.filters.eskf_config import load_config
 from kalman_course.filters.nominal_ekf import run_nominal_ekf
-from kalman_course.evaluation.trajectory import ate_rmse, umeyama
+from kalman_course.evaluation.pose import evaluate
+from kalman_course.evaluation.trajectory import ate_rmse
+from kalman_course.tooling.bench import aligned_track, eskf_sequence_time, seq00_ate
 
 EXCERPTS = ("cruise", "turns", "stop_go")
 EXTRA_SEEDS = (101, 202, 303, 404)
@@ -57,17 +58,12 @@ def _gnss_draws(ex):
         yield simulate_gnss(ex.gnss, seed, ex.gnss.sigma)
 
 
-def _noisy(gnss, drop=None):
-    keep = np.ones(len(gnss.t), dtype=bool)
-    if drop is not None:
-        keep = (gnss.t < drop[0]) | (gnss.t > drop[1])
-    return types.SimpleNamespace(t=gnss.t[keep], position=gnss.position_noisy[keep])
-
-
-def _aligned(track, truth):
-    """SE(3)-align a SLAM track to the truth on the excerpt's frames (positions and attitudes)."""
-    R, t, _ = umeyama(track.position, truth.position)
-    return track.position @ R.T + t, R @ track.rotation
+def _fixes(gnss, outage=None):
+    """The noisy fixes a filter receives, without those inside ``outage`` (tau0, tau1) s."""
+    fixes = gnss.observations()
+    if outage is None:
+        return fixes
+    return fixes.select((fixes.t < outage[0]) | (fixes.t > outage[1]))
 
 
 def excerpt_rows(name: str, cfg) -> tuple[dict, dict]:
@@ -87,23 +83,23 @@ def excerpt_rows(name: str, cfg) -> tuple[dict, dict]:
         res0 = None
         for label, c in variants.items():
             res = eskf.run(ex.imu, s0, c, ex.gravity, lidar=lidar, start=k0)
-            m = eskf.evaluate(res.t, res.position, res.rotation, ex.truth, res.P)
+            m = evaluate(res.t, res.position, res.rotation, ex.truth, res.P)
             sums[label].append(m)
             res0 = res0 or res
             diffs[label] = max(diffs[label], float(np.abs(res.position - res0.position).max()))
         sel = np.isin(lidar.t, res0.t)
-        raw = eskf.evaluate(lidar.t[sel], lidar.position[sel], lidar.rotation[sel], ex.truth)
+        raw = evaluate(lidar.t[sel], lidar.position[sel], lidar.rotation[sel], ex.truth)
         sums["raw lidar poses (no filter)"].append(raw)
         ref = sums["ESKF (random-walk bias, exact reset)"][-1]
         ratios.append({k: ref[k] / raw[k] for k in BARS})
     # deterministic methods on the same frames
     res0_t = eskf.run(ex.imu, s0, cfg, ex.gravity, lidar=ex.lidar, start=k0).t
     dr = eskf.run(ex.imu, s0, cfg, ex.gravity, start=k0, output_times=res0_t)
-    sums["IMU dead reckoning"] = [eskf.evaluate(dr.t, dr.position, dr.rotation, ex.truth)]
+    sums["IMU dead reckoning"] = [evaluate(dr.t, dr.position, dr.rotation, ex.truth)]
     sel = np.isin(ex.truth.t, res0_t)
     for track in (ex.orb_slam2, ex.sptam):
-        p, R = _aligned(track, ex.truth)
-        sums[f"{track.name} (SE(3)-aligned)"] = [eskf.evaluate(ex.truth.t[sel], p[sel], R[sel], ex.truth)]
+        p, R = aligned_track(track, ex.truth)
+        sums[f"{track.name} (SE(3)-aligned)"] = [evaluate(ex.truth.t[sel], p[sel], R[sel], ex.truth)]
     means = {label: {k: float(np.mean([m[k] for m in ms])) for k in METRICS} for label, ms in sums.items()}
     return means, {k: float(np.mean([r[k] for r in ratios])) for k in BARS}, diffs
 
@@ -115,45 +111,20 @@ def gnss_rows(name: str, cfg, outage=None) -> tuple[float, float, float, float]:
     k0, s0 = ex.initial_state()
     fused, raw, peak, sigma = [], [], 0.0, 0.0
     for gnss in _gnss_draws(ex):
-        obs = _noisy(gnss, outage)
-        res = eskf.run(ex.imu, s0, cfg, ex.gravity, gnss=obs, start=k0, output_times=ex.truth.t).at(ex.truth.t)
-        err = np.linalg.norm(res.position - ex.truth.position[np.isin(ex.truth.t, res.t)], axis=1)
-        fused.append(np.sqrt(np.mean(err ** 2)))
-        inside = (gnss.t >= ex.truth.t[0]) & (gnss.t <= ex.truth.t[-1])
-        tru = ex.truth.interpolate(gnss.t[inside]).position
-        raw.append(np.sqrt(np.mean(np.sum((gnss.position_noisy[inside] - tru) ** 2, axis=1))))
+        fixes = _fixes(gnss, outage)
+        res = eskf.run(ex.imu, s0, cfg, ex.gravity, gnss=fixes, start=k0, output_times=ex.truth.t).at(ex.truth.t)
+        truth_position = ex.truth.position[np.isin(ex.truth.t, res.t)]
+        err = np.linalg.norm(res.position - truth_position, axis=1)
+        fused.append(ate_rmse(res.position, truth_position, align="none"))
+        all_fixes = gnss.observations()
+        inside = all_fixes.select((all_fixes.t >= ex.truth.t[0]) & (all_fixes.t <= ex.truth.t[-1]))
+        raw.append(ate_rmse(inside.position, ex.truth.interpolate(inside.t).position, align="none"))
         if outage is not None:
             w = np.nonzero((res.t >= outage[0]) & (res.t <= outage[1] + 1.0))[0]
             i = w[np.argmax(err[w])]
             if err[i] > peak:
                 peak, sigma = float(err[i]), float(np.sqrt(np.trace(res.P[i][:3, :3])))
     return float(np.mean(fused)), float(np.mean(raw)), peak, sigma
-
-
-def seq00_rows(cfg_lidar, cfg_gnss) -> list[tuple[str, float]]:
-    ex = load_kitti("seq00")
-    k0, s0 = ex.initial_state()
-    cam = ex.frames.cam0_position
-    rows = []
-
-    def ate(res):
-        res = res.at(ex.truth.t)
-        k = np.searchsorted(ex.truth.t, res.t - 1e-6)
-        return ate_rmse(cam(res.position, res.rotation), cam(ex.truth.position[k], ex.truth.rotation[k]))
-
-    for flags in (True, False):
-        res = eskf.run(ex.imu, s0, cfg_lidar, ex.gravity, lidar=ex.lidar, start=k0,
-                       use_interpolation_flags=flags)
-        rows.append((f"ESKF + lidar, interpolation flags {'on' if flags else 'off'}", ate(res)))
-    for flags in (True, False):
-        res = eskf.run(ex.imu, s0, cfg_gnss, ex.gravity, gnss=_noisy(ex.gnss), start=k0,
-                       output_times=ex.truth.t, use_interpolation_flags=flags)
-        rows.append((f"ESKF + GNSS, interpolation flags {'on' if flags else 'off'}", ate(res)))
-    cam_truth = cam(ex.truth.position, ex.truth.rotation)
-    rows.append(("raw lidar poses", ate_rmse(cam(ex.lidar.position, ex.lidar.rotation), cam_truth)))
-    for track in (ex.orb_slam2, ex.sptam):
-        rows.append((track.name, ate_rmse(cam(track.position, track.rotation), cam_truth)))
-    return rows
 
 
 def sensitivity_settings(cfg):
@@ -169,19 +140,6 @@ def sensitivity_settings(cfg):
         ("lidar R × 4 (σ doubled)", cfg.replace(observation__lidar_position=2 * lid[0], observation__lidar_attitude=2 * lid[3])),
         ("lidar R ÷ 4 (σ halved)", cfg.replace(observation__lidar_position=lid[0] / 2, observation__lidar_attitude=lid[3] / 2)),
     ]
-
-
-def speed(cfg, repeats: int = 5) -> tuple[list[float], list[float]]:
-    """Wall-clock and CPU (process) times of the whole sequence 00 with lidar, s."""
-    ex = load_kitti("seq00")
-    k0, s0 = ex.initial_state()
-    wall, cpu = [], []
-    for _ in range(repeats):
-        t, c = time.perf_counter(), time.process_time()
-        eskf.run(ex.imu, s0, cfg, ex.gravity, lidar=ex.lidar, start=k0)
-        wall.append(time.perf_counter() - t)
-        cpu.append(time.process_time() - c)
-    return wall, cpu
 
 
 def main() -> int:
@@ -220,7 +178,7 @@ def main() -> int:
             ex = load_kitti(name)
             k0, s0 = ex.initial_state()
             r = eskf.run(ex.imu, s0, c, ex.gravity, lidar=ex.lidar, start=k0)
-            rows.append(eskf.evaluate(r.t, r.position, r.rotation, ex.truth, r.P))
+            rows.append(evaluate(r.t, r.position, r.rotation, ex.truth, r.P))
         m = {k: float(np.mean([x[k] for x in rows])) for k in METRICS}
         print(f"| {label} | {m['ape_position']:.3f} | {m['ape_attitude_deg']:.3f} | {m['rpe_position']:.3f} | "
               f"{m['nees_pose']:.2f} |")
@@ -234,8 +192,8 @@ def main() -> int:
         k0, s0 = ex.initial_state()
         e = eskf.run(ex.imu, s0, cfg, ex.gravity, lidar=ex.lidar, start=k0)
         r = run_nominal_ekf(ex.imu, s0, cfg, ex.gravity, lidar=ex.lidar, start=k0)
-        me = eskf.evaluate(e.t, e.position, e.rotation, ex.truth, e.P)
-        mr = eskf.evaluate(r.t, r.position, r.rotation, ex.truth, r.P_pose)
+        me = evaluate(e.t, e.position, e.rotation, ex.truth, e.P)
+        mr = evaluate(r.t, r.position, r.rotation, ex.truth, r.P_pose)
         print(f"| {name} | {me['ape_position']:.4f} | {mr['ape_position']:.4f} | {me['nees_pose']:.2f} | "
               f"{mr['nees_pose']:.2f} | {np.abs(r.position - e.position).max() * 1e3:.3f} |")
     print()
@@ -263,12 +221,12 @@ def main() -> int:
     print("## Whole sequence 00 (ATE, SE(3)-aligned cam0 positions)\n")
     print("| estimate | ATE (m) |")
     print("|---|---|")
-    rows = seq00_rows(cfg, cfg_g)
+    rows = seq00_ate(cfg, cfg_g)
     for label, value in rows:
         print(f"| {label} | {value:.3f} |")
     ok &= rows[0][1] <= 0.2 and rows[2][1] <= 1.5
 
-    wall, cpu = speed(cfg)
+    wall, cpu = eskf_sequence_time(cfg)
     med, med_cpu = statistics.median(wall), statistics.median(cpu)
     ok &= med <= 1.5
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")

@@ -95,11 +95,11 @@ GOOD_T = circular_motion_model(3, {1: 1.0})
 CASES = [
     (lambda: normalise([0.0, 0.0]), r"belief must have a positive sum"),
     (lambda: normalise([1.0, -0.5]), r"belief must be non-negative"),
-    (lambda: normalise([[0.5, 0.5]]), r"belief must be a non-empty 1-D array"),
-    (lambda: normalise([]), r"belief must be a non-empty 1-D array"),
+    (lambda: normalise([[0.5, 0.5]]), r"belief must be a 1-D vector of shape \(n,\)"),
+    (lambda: normalise([]), r"belief must not be empty"),
     (lambda: histogram_update([0.5, 0.6], [1.0, 1.0]), r"belief must sum to 1"),
     (lambda: histogram_update([1.5, -0.5], [1.0, 1.0]), r"belief must be non-negative"),
-    (lambda: histogram_update([[0.5, 0.5]], [1.0, 1.0]), r"belief must be a non-empty 1-D"),
+    (lambda: histogram_update([[0.5, 0.5]], [1.0, 1.0]), r"belief must be a 1-D vector"),
     (lambda: histogram_update([np.nan, 1.0], [1.0, 1.0]), r"belief must be finite"),
     (lambda: histogram_update([0.5, 0.5], [1.0, 1.0, 1.0]), r"likelihood must have shape \(2,\)"),
     (lambda: histogram_update([0.5, 0.5], [1.0, -1.0]), r"likelihood must be non-negative"),
@@ -117,7 +117,7 @@ CASES = [
     (lambda: circular_motion_model(3, {}), r"step_probs must be a non-empty dict"),
     (lambda: circular_motion_model(3, [0.5, 0.5]), r"step_probs must be a non-empty dict"),
     (lambda: circular_motion_model(3, {0: 0.5, 1: 0.4}), r"step_probs probabilities must sum to 1"),
-    (lambda: circular_motion_model(3, {0: 1.5, 1: -0.5}), r"step_probs values must be"),
+    (lambda: circular_motion_model(3, {0: 1.5, 1: -0.5}), r"step_probs\[1\] must be a finite non-negative number"),
     (lambda: circular_motion_model(3, {0.5: 1.0}), r"step_probs keys must be integer"),
 ]
 

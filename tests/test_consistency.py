@@ -1,9 +1,12 @@
-"""Chapter 09 library: consistency summaries, gating, outliers, Monte Carlo, update forms."""
+"""Consistency statistics (evaluation layer) and the chapter 09 experiments: summaries,
+gating, outliers, Monte Carlo, update forms; and a smoke test of the benchmark report."""
 
 import numpy as np
 import pytest
 
 from kalman_course.chapters import consistency as C
+from kalman_course.core import linalg
+from kalman_course.evaluation import consistency as stats
 from kalman_course.evaluation import metrics
 from kalman_course.data import load_kitti
 
@@ -22,10 +25,10 @@ def outlier_runs(cruise):
 def test_verdict_of_chi_square_draws():
     rng = np.random.default_rng(3)
     values = rng.chisquare(6, size=400)
-    assert C.verdict(values, 6) == "consistent"
-    assert C.verdict(2.0 * values, 6) == "overconfident"
-    assert C.verdict(0.5 * values, 6) == "underconfident"
-    s = C.summarise(values, 6)
+    assert stats.verdict(values, 6) == "consistent"
+    assert stats.verdict(2.0 * values, 6) == "overconfident"
+    assert stats.verdict(0.5 * values, 6) == "underconfident"
+    s = stats.summarise(values, 6)
     assert s.lo == pytest.approx(metrics.chi2_ppf(0.025, 6))
     assert 0.9 < s.share_inside < 0.99
     assert s.mean_lo < s.mean < s.mean_hi
@@ -33,21 +36,36 @@ def test_verdict_of_chi_square_draws():
 
 def test_summarise_run_average_and_nan():
     values = np.array([5.0, np.nan, 6.0, 7.0])
-    s = C.summarise(values, 6, n_runs=20)
+    s = stats.summarise(values, 6, n_runs=20)
     assert s.mean == pytest.approx(6.0)
     assert (s.lo, s.hi) == pytest.approx(metrics.chi2_bounds(6, 20))
     with pytest.raises(ValueError):
-        C.summarise([np.nan], 6)
+        stats.summarise([np.nan], 6)
+
+
+@pytest.mark.parametrize("call, name", [
+    (lambda: stats.summarise([1.0, np.inf], 6), "values"),
+    (lambda: stats.summarise([1.0], 0), "dof"),
+    (lambda: stats.summarise([1.0], 6, n_runs=2.5), "n_runs"),
+    (lambda: stats.verdict([1.0], 6, confidence=1.5), "confidence"),
+    (lambda: stats.gate_threshold(3, 0.0), "confidence"),
+    (lambda: stats.gate([1.0, 2.0], np.eye(3)), "S"),
+    (lambda: stats.gate([1.0, np.nan], np.eye(2)), "innovation"),
+    (lambda: stats.gate([1.0, 2.0], np.diag([1.0, -1.0])), "S"),
+])
+def test_statistics_name_the_bad_argument(call, name):
+    with pytest.raises(ValueError, match=name):
+        call()
 
 
 def test_gate_threshold_and_decisions():
     S = np.diag([4.0, 1.0, 0.25])
-    threshold = C.gate_threshold(3, 0.99)
+    threshold = stats.gate_threshold(3, 0.99)
     assert threshold == pytest.approx(11.344866730144373, rel=1e-9)
     y = np.array([2.0, 1.0, 0.5])                      # NIS 3
-    assert C.gate(y, S)
-    assert not C.gate(y * np.sqrt(1.01 * threshold / 3.0), S)
-    assert C.gate(y * np.sqrt(0.99 * threshold / 3.0), S)
+    assert stats.gate(y, S)
+    assert not stats.gate(y * np.sqrt(1.01 * threshold / 3.0), S)
+    assert stats.gate(y * np.sqrt(0.99 * threshold / 3.0), S)
 
 
 def test_inject_outliers_is_seeded_and_local(cruise):
@@ -72,11 +90,11 @@ def test_gated_run_rejects_the_outliers(cruise, outlier_runs):
     assert rejected[~mask[gated.index]].sum() <= 3           # and hardly any good pose
     # the decision is the sequential one: every pose is judged by its own prior's NIS
     np.testing.assert_array_equal(gated.accepted, gated.nis <= gated.threshold)
-    from kalman_course.filters import eskf
+    from kalman_course.evaluation.pose import evaluate
     errs = []
     for run in (gated, ungated):
         r = run.result
-        errs.append(eskf.evaluate(r.t, r.position, r.rotation, cruise.truth)["ape_position"])
+        errs.append(evaluate(r.t, r.position, r.rotation, cruise.truth)["ape_position"])
     assert errs[0] < 0.2 < 0.3 < errs[1]
 
 
@@ -124,6 +142,14 @@ def test_update_forms():
     bad = 1.5 * K
     assert C.covariance_health(C.simple_update(P, bad, G))[1] < 0.0
     assert C.covariance_health(C.joseph_update(P, bad, G, R))[1] > 0.0
+    # the Joseph form is the shared kernel's, for any gain
+    np.testing.assert_array_equal(C.joseph_update(P, bad, G, R), linalg.joseph_update(P, bad, G, R))
+    # the short form is left unsymmetrised on purpose: a gain not proportional to P̌Gᵀ shows it
+    hand = np.array([[1.2], [0.1]])
+    P_corr = np.array([[1.0, 0.5], [0.5, 1.0]])
+    assert C.covariance_health(C.simple_update(P_corr, hand, G))[0] > 0.1
+    with pytest.raises(ValueError, match="G"):
+        C.simple_update(P, K, np.ones((1, 3)))
     skew = np.array([[1.0, 0.3], [0.1, 1.0]])
     assert C.covariance_health(skew)[0] == pytest.approx(0.2)
     assert C.covariance_health(C.symmetrise(skew))[0] == 0.0
@@ -132,6 +158,12 @@ def test_update_forms():
 def test_roundoff_experiment():
     asym32, eig32 = C.roundoff_experiment(np.float32, "simple")
     assert asym32 > 1e-4 and eig32 < 0.0
+    # the update forms stay in single precision (an upcast would hide the failure)
+    P32 = np.eye(2, dtype=np.float32)
+    G32, R32 = np.array([[1.0, 0.0]], np.float32), np.array([[0.01]], np.float32)
+    K32 = np.array([[0.5], [0.0]], np.float32)
+    assert C.simple_update(P32, K32, G32).dtype == np.float32
+    assert C.joseph_update(P32, K32, G32, R32).dtype == np.float32
     assert C.roundoff_experiment(np.float32, "joseph")[1] > 0.0
     assert C.roundoff_experiment(np.float64, "simple", symmetric=True)[0] == 0.0
     with pytest.raises(ValueError):
@@ -149,3 +181,12 @@ def test_bench_smoke():
     assert lidar["pos"] < 0.4 * raw["pos"] and lidar["att"] < 0.3 * raw["att"]
     assert rows["ESKF + GNSS (1 Hz)"]["pos"] < 0.7 * rows["raw GNSS fixes (σ 1 m)"]["pos"]
     assert set(rows) >= {"ORB-SLAM2 (SE(3)-aligned)", "S-PTAM (SE(3)-aligned)"}
+
+
+def test_median_time_and_its_arguments():
+    from kalman_course.tooling import bench
+    calls = []
+    assert bench.median_time(lambda: calls.append(1), repeats=5, warmup=2) >= 0.0
+    assert len(calls) == 7
+    with pytest.raises(ValueError, match="repeats"):
+        bench.median_time(lambda: None, repeats=0)

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from kalman_course.core import so3
+from kalman_course.core.observations import PoseObservations, PositionObservations
 from kalman_course.data import (EXCERPTS, SCHEMA_VERSION, KittiExcerpt, kitti_dir, load_excerpt_file,
                                 load_kitti, read_manifest, simulate_gnss, simulate_lidar_poses)
 from kalman_course.evaluation.trajectory import ate_rmse
@@ -37,7 +38,7 @@ def test_every_excerpt_loads_with_consistent_shapes():
         N, M, K = len(ex.imu), len(ex.gnss), len(ex.truth)
         assert ex.imu.specific_force.shape == ex.imu.angular_rate.shape == (N, 3)
         assert ex.imu.interpolated.shape == (N,) and ex.imu.interpolated.dtype == bool
-        assert ex.gnss.position.shape == ex.gnss.position_noisy.shape == (M, 3)
+        assert ex.gnss.position_true.shape == ex.gnss.position_noisy.shape == (M, 3)
         assert ex.truth.rotation.shape == (K, 3, 3) and ex.truth.quaternion.shape == (K, 4)
         for track in (ex.lidar, ex.orb_slam2, ex.sptam):
             assert track.position.shape == (K, 3) and track.rotation.shape == (K, 3, 3)
@@ -103,17 +104,17 @@ def test_provenance_names_package_version_and_file_of_every_stream(seq):
 
 def test_gnss_agrees_with_ground_truth_imu_positions_within_1_cm(seq):
     inside = (seq.gnss.t >= seq.truth.t[0]) & (seq.gnss.t <= seq.truth.t[-1])
-    err = seq.truth.interpolate(seq.gnss.t[inside]).position - seq.gnss.position[inside]
+    err = seq.truth.interpolate(seq.gnss.t[inside]).position - seq.gnss.position_true[inside]
     assert rms(err) <= 0.01
     for name in EXCERPT_NAMES:
         ex = load_kitti(name)
-        assert rms(ex.truth.interpolate(ex.gnss.t).position - ex.gnss.position) <= 0.01
+        assert rms(ex.truth.interpolate(ex.gnss.t).position - ex.gnss.position_true) <= 0.01
 
 
 def test_gnss_clock_offset_is_at_its_minimum(seq):
     inside = (seq.gnss.t >= seq.truth.t[0] + 0.1) & (seq.gnss.t <= seq.truth.t[-1] - 0.1)
     t = seq.gnss.t[inside]
-    errs = {dt: rms(seq.truth.interpolate(t + dt).position - seq.gnss.position[inside])
+    errs = {dt: rms(seq.truth.interpolate(t + dt).position - seq.gnss.position_true[inside])
             for dt in (-0.02, -0.01, 0.0, 0.01, 0.02)}
     assert min(errs, key=errs.get) == 0.0
     assert errs[0.01] > 5 * errs[0.0]
@@ -264,7 +265,7 @@ def test_simulated_lidar_noise_has_the_stated_standard_deviations(seq):
 
 
 def test_simulated_gnss_noise_has_the_stated_standard_deviation(seq):
-    d = seq.gnss.position_noisy - seq.gnss.position
+    d = seq.gnss.position_noisy - seq.gnss.position_true
     np.testing.assert_allclose(d.std(axis=0), 1.0, rtol=4.0 / np.sqrt(2 * len(d)))
 
 
@@ -278,6 +279,58 @@ def test_shipped_noise_is_reproduced_by_the_exposed_generators():
         np.testing.assert_allclose(gnss.position_noisy, ex.gnss.position_noisy, atol=1e-12)
     other = simulate_lidar_poses(ex.truth, ex.lidar.seed + 1)
     assert np.abs(other.position - ex.lidar.position).max() > 0.1
+
+
+# ---------------------------------------------------------------------------------------
+# What a filter receives
+# ---------------------------------------------------------------------------------------
+
+def test_gnss_observations_are_the_noisy_fixes():
+    for name in EXCERPTS:
+        gnss = load_kitti(name).gnss
+        obs = gnss.observations()
+        assert type(obs) is PositionObservations
+        np.testing.assert_array_equal(obs.t, gnss.t)
+        np.testing.assert_array_equal(obs.position, gnss.position_noisy)
+        # the noise is really there: the fixes are not the recorded solution
+        assert np.abs(obs.position - gnss.position_true).max() > 1.0
+
+
+def test_gnss_data_has_no_position_a_filter_could_read_by_mistake():
+    gnss = load_kitti("cruise").gnss
+    assert not isinstance(gnss, PositionObservations)
+    with pytest.raises(AttributeError):
+        gnss.position
+
+
+def test_lidar_is_a_validated_pose_record():
+    lidar = load_kitti("cruise").lidar
+    assert isinstance(lidar, PoseObservations)
+    assert len(lidar) == len(lidar.t) and lidar.quaternion.shape == (len(lidar), 4)
+    np.testing.assert_allclose(so3.quat_to_matrix(lidar.quaternion), lidar.rotation, atol=1e-15)
+    for arr in (lidar.t, lidar.position, lidar.rotation, lidar.quaternion):
+        assert not arr.flags.writeable
+    sub = lidar.select(slice(0, 10))
+    assert type(sub) is type(lidar) and sub.seed == lidar.seed
+    np.testing.assert_array_equal(sub.quaternion, lidar.quaternion[:10])
+
+
+def test_lidar_record_rejects_a_nan_pose():
+    truth = load_kitti("cruise").truth
+    position = truth.position.copy()
+    position[17, 2] = np.nan
+    bad = type("Poses", (), {"t": truth.t, "position": position, "rotation": truth.rotation})
+    with pytest.raises(ValueError, match=r"^position\[17\] is NaN$"):
+        simulate_lidar_poses(bad, seed=0)
+
+
+def test_simulate_gnss_takes_the_noise_free_position_of_any_record():
+    gnss = load_kitti("cruise").gnss
+    plain = type("Fixes", (), {"t": gnss.t, "position": gnss.position_true})
+    np.testing.assert_array_equal(simulate_gnss(plain, 3).position_noisy,
+                                  simulate_gnss(gnss, 3).position_noisy)
+    with pytest.raises(ValueError, match="gnss must have t .* and position"):
+        simulate_gnss(type("NoPosition", (), {"t": gnss.t}), 3)
 
 
 def test_lidar_generator_applies_noise_on_the_right():

@@ -1,11 +1,13 @@
-"""Tests of the seeded synthetic scenarios (kalman_course.data.synthetic)."""
+"""Tests of the seeded synthetic scenarios (kalman_course.data.synthetic).
+
+The chapter 05 lidar + radar scenario moved to kalman_course.chapters.lidar_radar: see
+test_lidar_radar.py."""
 
 import numpy as np
 import pytest
 
 from kalman_course.core import so3
-from kalman_course.data import (ctrv_lidar_radar, ctrv_step, cv_target, imu_trajectory, radar_measurement,
-                                random_walk_1d)
+from kalman_course.data import cv_target, imu_trajectory, random_walk_1d
 from kalman_course.data.synthetic import _analytic_motion
 from kalman_course.core.imu import dead_reckon
 
@@ -54,43 +56,6 @@ def test_cv_target_rejects_bad_dim_and_x0():
         cv_target(10, 0.1, 1.0, 1.0, seed=0, dim=4)
     with pytest.raises(ValueError, match=r"x0 must have shape \(4,\)"):
         cv_target(10, 0.1, 1.0, 1.0, seed=0, x0=np.zeros(3))
-
-
-def test_ctrv_scenario_interleaves_lidar_and_radar_with_the_stated_noise():
-    sc = ctrv_lidar_radar(seed=0, duration=500.0, x0=(50.0, 20.0, 5.0, 0.5, 0.1), sigma_a=0.0,
-                          sigma_yaw_acc=0.0)
-    assert list(sc.sensor[:4]) == ["lidar", "radar", "lidar", "radar"]
-    meas = list(sc.measurements())
-    assert [m.sensor for m in meas[:2]] == ["lidar", "radar"] and len(meas) == len(sc)
-    assert all(m.t == sc.t[m.index] for m in meas[:10])
-    lidar_res = sc.lidar_z - sc.x[sc.lidar_index, :2]
-    np.testing.assert_allclose(np.cov(lidar_res.T), np.diag([0.0225, 0.0225]), atol=0.003)
-    radar_true = np.array([radar_measurement(x) for x in sc.x[sc.radar_index]])
-    res = sc.radar_z - radar_true
-    res[:, 1] = (res[:, 1] + np.pi) % (2 * np.pi) - np.pi
-    for i, var in enumerate([0.09, 0.0009, 0.09]):
-        assert within_sd(res[:, i].std(), np.sqrt(var), len(res))
-    assert np.all(np.abs(sc.radar_z[:, 1]) <= np.pi)
-
-
-def test_ctrv_truth_follows_the_model_with_its_process_noise():
-    sc = ctrv_lidar_radar(seed=4)
-    n = len(sc)
-    rng = np.random.default_rng(4)
-    nu_a = 3.0 * rng.standard_normal(n)
-    nu_y = 0.3 * rng.standard_normal(n)
-    x = sc.x0
-    for k in range(n):
-        x = ctrv_step(x, sc.dt, nu_a[k], nu_y[k])
-        np.testing.assert_allclose(x, sc.x[k], atol=1e-12)
-    assert np.allclose(sc.R_lidar, np.diag([0.0225, 0.0225])) and np.allclose(sc.R_radar, np.diag([0.09, 0.0009, 0.09]))
-
-
-def test_ctrv_step_straight_line_limit_is_continuous():
-    x = np.array([1.0, 2.0, 4.0, 0.7, 0.0])
-    curved = ctrv_step(x + [0, 0, 0, 0, 2e-6], 0.1)
-    straight = ctrv_step(x, 0.1)
-    np.testing.assert_allclose(curved[:2], straight[:2], atol=1e-6)
 
 
 def test_imu_trajectory_truth_is_exact_under_the_midpoint_mechanisation():

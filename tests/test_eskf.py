@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import types
+import warnings
 
 import numpy as np
 import pytest
 
 from kalman_course.filters import eskf
 from kalman_course.core import so3
+from kalman_course.core.observations import PositionObservations
 from kalman_course.data import imu_trajectory, load_kitti
 from kalman_course.filters.eskf import NominalState
 from kalman_course.filters.eskf_config import load_config
@@ -181,53 +183,139 @@ def test_joseph_update_keeps_P_symmetric_and_shrinks_it():
 
 
 # ---------------------------------------------------------------------------------------
-# The fast runner equals the step-by-step filter
+# The batch runner equals the step-by-step filter
 # ---------------------------------------------------------------------------------------
 
-def _stepwise(ex, t_end, config):
-    """The step-by-step ESKF over the same merged timeline as ``run``."""
-    k0, s0 = ex.initial_state()
-    imu = ex.imu
-    f = eskf.ESKF(config, s0, ex.gravity)
-    lidar_t = ex.lidar.t
-    out = []
-    t_prev = imu.t[k0]
-    f_prev, w_prev = imu.specific_force[k0], imu.angular_rate[k0]
-    j = int(np.searchsorted(lidar_t, t_prev, side="right"))
-    for k in range(k0 + 1, len(imu.t)):
-        if imu.t[k] > t_end:
-            break
-        while j < len(lidar_t) and lidar_t[j] <= imu.t[k]:
-            tj = lidar_t[j]
+def _stepwise(imu, s0, config, gravity, k0, t_end, lidar=None, gnss=None, gap_factor=3.0):
+    """The step-by-step ESKF over the timeline ``run`` documents: every IMU sample and every
+    observation time, readings interpolated at observation times between samples, the
+    inflated noise on steps touching an interpolated sample or bridging a gap in imu.t.
+
+    Returns {time: (position, rotation, P)} after the last update at each observation time.
+    """
+    t, f_all, w_all = imu.t, imu.specific_force, imu.angular_rate
+    last = int(np.searchsorted(t, t_end, side="right")) - 1
+    gap = np.diff(t[k0:last + 1]) > gap_factor * np.median(np.diff(t[k0:last + 1]))
+    events = []
+    for kind, obs in enumerate((lidar, gnss)):
+        if obs is not None:
+            events += [(tj, kind, j) for j, tj in enumerate(obs.t) if t[k0] < tj <= t[last]]
+    events.sort()
+    flt = eskf.ESKF(config, s0, gravity)
+    out = {}
+    t_prev, f_prev, w_prev = t[k0], f_all[k0], w_all[k0]
+    e = 0
+    for k in range(k0 + 1, last + 1):
+        inflated = bool(imu.interpolated[k - 1] or imu.interpolated[k] or gap[k - 1 - k0])
+        while e < len(events) and events[e][0] <= t[k]:
+            tj, kind, j = events[e]
+            e += 1
             if tj > t_prev:
-                s = (tj - imu.t[k - 1]) / (imu.t[k] - imu.t[k - 1])
-                fj = (1 - s) * imu.specific_force[k - 1] + s * imu.specific_force[k]
-                wj = (1 - s) * imu.angular_rate[k - 1] + s * imu.angular_rate[k]
-                f.predict(f_prev, w_prev, fj, wj, tj - t_prev)
+                s = (tj - t[k - 1]) / (t[k] - t[k - 1])
+                fj = (1 - s) * f_all[k - 1] + s * f_all[k]
+                wj = (1 - s) * w_all[k - 1] + s * w_all[k]
+                flt.predict(f_prev, w_prev, fj, wj, tj - t_prev, interpolated=inflated)
                 t_prev, f_prev, w_prev = tj, fj, wj
-            f.update_pose(ex.lidar.position[j], ex.lidar.rotation[j])
-            out.append((tj, f.nominal.position.copy(), f.nominal.rotation.copy(), f.P.copy()))
-            j += 1
-        if imu.t[k] > t_prev:
-            f.predict(f_prev, w_prev, imu.specific_force[k], imu.angular_rate[k], imu.t[k] - t_prev)
-            t_prev, f_prev, w_prev = imu.t[k], imu.specific_force[k], imu.angular_rate[k]
+            if kind == 0:
+                flt.update_pose(lidar.position[j], lidar.rotation[j])
+            else:
+                flt.update_position(gnss.position[j])
+            out[tj] = (flt.nominal.position.copy(), flt.nominal.rotation.copy(), flt.P.copy())
+        if t[k] > t_prev:
+            flt.predict(f_prev, w_prev, f_all[k], w_all[k], t[k] - t_prev, interpolated=inflated)
+            t_prev, f_prev, w_prev = t[k], f_all[k], w_all[k]
     return out
 
 
-def test_batch_runner_equals_stepwise_filter_with_observations_between_samples():
-    ex = load_kitti("cruise")
+def _without_samples(imu, t_from, t_to):
+    """The IMU record with every sample strictly inside (t_from, t_to) removed: a gap."""
+    keep = (imu.t <= t_from) | (imu.t >= t_to)
+    return types.SimpleNamespace(t=imu.t[keep], specific_force=imu.specific_force[keep],
+                                 angular_rate=imu.angular_rate[keep], interpolated=imu.interpolated[keep])
+
+
+@pytest.mark.parametrize("sensors", ["lidar", "gnss", "lidar+gnss", "lidar+imu gap"])
+@pytest.mark.parametrize("bias_model", ["random_walk", "constant"])
+@pytest.mark.parametrize("exact_reset", [True, False], ids=["exact reset", "lecture reset"])
+def test_batch_runner_equals_stepwise_filter(sensors, bias_model, exact_reset):
+    ex = load_kitti("turns")
     k0, s0 = ex.initial_state()
-    t_end = ex.imu.t[k0] + 3.0
-    ref = _stepwise(ex, t_end, "kitti_lidar")
-    res = eskf.run(ex.imu, s0, "kitti_lidar", ex.gravity, lidar=ex.lidar, start=k0, t_end=t_end)
-    assert len(ref) == len(res.t) > 20
-    # the lidar times really do fall between IMU samples
-    assert np.min(np.abs(ex.imu.t[:, None] - res.t[None, :]), axis=0).max() > 1e-3
-    for i, (t, p, R, P) in enumerate(ref):
+    t_end = ex.imu.t[k0] + 4.0
+    imu = ex.imu
+    if "imu gap" in sensors:
+        imu = _without_samples(imu, imu.t[k0] + 1.5, imu.t[k0] + 2.0)
+        k0 = int(np.searchsorted(imu.t, ex.imu.t[k0]))
+    lidar = ex.lidar if "lidar" in sensors else None
+    gnss = PositionObservations(ex.gnss.t, ex.gnss.position_noisy) if "gnss" in sensors else None
+    cfg = load_config("kitti_gnss" if sensors == "gnss" else "kitti_lidar").replace(
+        bias_model=bias_model, exact_reset=exact_reset)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = eskf.run(imu, s0, cfg, ex.gravity, lidar=lidar, gnss=gnss, start=k0, t_end=t_end)
+    assert [w.category for w in caught] == ([eskf.ImuGapWarning] if "imu gap" in sensors else [])
+    ref = _stepwise(imu, s0, cfg, ex.gravity, k0, t_end, lidar, gnss)
+    assert res.updated.all() and len(res.t) == len(ref) >= (4 if sensors == "gnss" else 35)
+    if lidar is not None:   # the lidar times really do fall between IMU samples
+        assert np.min(np.abs(imu.t[:, None] - res.t[None, :]), axis=0).max() > 1e-3
+    for i, (t, (p, R, P)) in enumerate(sorted(ref.items())):
         assert res.t[i] == pytest.approx(t, abs=1e-12)
         np.testing.assert_allclose(res.position[i], p, atol=1e-9)
         np.testing.assert_allclose(res.rotation[i], R, atol=1e-11)
         np.testing.assert_allclose(res.P[i], P, rtol=1e-7, atol=1e-14)
+
+
+# ---------------------------------------------------------------------------------------
+# A gap in the IMU stream is bridged with the inflated noise, and reported
+# ---------------------------------------------------------------------------------------
+
+def _pose_errors(ex, res):
+    """Attitude error angle (deg) and 6-dof pose NEES of every row of ``res``."""
+    truth = ex.truth.interpolate(res.t)
+    e_p = res.position - truth.position
+    e_th = so3.log(np.swapaxes(truth.rotation, 1, 2) @ res.rotation)
+    e6 = np.concatenate([e_p, e_th], axis=1)
+    pose = [0, 1, 2, 6, 7, 8]
+    P6 = res.P[:, pose][:, :, pose]
+    nees = np.einsum("ki,ki->k", e6, np.linalg.solve(P6, e6[..., None])[..., 0])
+    return np.rad2deg(np.linalg.norm(e_th, axis=1)), nees
+
+
+def _turn_with_a_gap(seconds=2.0):
+    """The turns excerpt with ``seconds`` of IMU removed where the car turns most, and t_end."""
+    ex = load_kitti("turns")
+    k0, s0 = ex.initial_state()
+    t, wz = ex.imu.t, ex.imu.angular_rate[:, 2]
+    yaw = np.concatenate([[0.0], np.cumsum(np.abs(0.5 * (wz[1:] + wz[:-1])) * np.diff(t))])
+    starts = np.arange(k0 + 500, np.searchsorted(t, t[-1] - seconds - 6.0))     # after 5 s of filtering
+    ends = np.searchsorted(t, t[starts] + seconds)
+    a = starts[np.argmax(yaw[ends] - yaw[starts])]
+    t_from, t_to = t[a], t[a] + seconds
+    assert np.rad2deg(yaw[np.searchsorted(t, t_to)] - yaw[a]) > 45.0        # it is a turn
+    imu = _without_samples(ex.imu, t_from, t_to)
+    return ex, imu, int(np.searchsorted(imu.t, t[k0])), s0, t_to + 5.0
+
+
+def test_a_gap_in_the_imu_stream_is_bridged_with_inflated_noise_and_reported():
+    ex, imu, k0, s0, t_end = _turn_with_a_gap()
+    with pytest.warns(eskf.ImuGapWarning, match=r"1 gap\(s\) .* the longest 2.01 s"):
+        bridged = eskf.run(imu, s0, "kitti_lidar", ex.gravity, lidar=ex.lidar, start=k0, t_end=t_end)
+    angle, nees = _pose_errors(ex, bridged)
+    assert angle.max() < 1.5
+    assert nees.max() < 60.0 and nees.mean() < 12.0
+    # the same run with the ordinary process noise across the gap: what the detection prevents
+    blind = eskf.run(imu, s0, "kitti_lidar", ex.gravity, lidar=ex.lidar, start=k0, t_end=t_end,
+                     gap_factor=None)
+    angle, nees = _pose_errors(ex, blind)
+    assert angle.max() > 10.0 and nees.max() > 1000.0
+
+
+def test_a_stream_without_gaps_gives_no_warning():
+    ex = load_kitti("turns")            # its longest step is 1.7 × the median: jitter, not a gap
+    k0, s0 = ex.initial_state()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", eskf.ImuGapWarning)
+        eskf.run(ex.imu, s0, "kitti_lidar", ex.gravity, lidar=ex.lidar, start=k0, t_end=ex.imu.t[k0] + 5.0)
+    assert np.diff(ex.imu.t).max() > 1.5 * np.median(np.diff(ex.imu.t))
 
 
 def test_covariances_stay_symmetric_positive_definite():

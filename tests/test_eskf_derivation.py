@@ -6,12 +6,14 @@ import numpy as np
 import pytest
 import sympy as sp
 
+from kalman_course.core import so3
 from kalman_course.filters import eskf
 from kalman_course.symbolic import eskf as eskf_derivation
-from kalman_course.core import so3
+
+BUILDERS = (eskf_derivation.eskf_error_dynamics, eskf_derivation.eskf_discretisation, eskf_derivation.eskf_reset)
 
 
-@pytest.mark.parametrize("build", eskf_derivation.BUILDERS, ids=lambda b: b.__name__)
+@pytest.mark.parametrize("build", BUILDERS, ids=lambda b: b.__name__)
 def test_every_derivation_verifies_and_exports(build):
     d = build()
     assert d.verify(), d.check()
@@ -55,7 +57,7 @@ def test_reset_jacobian_first_order_form_agrees_with_the_filter():
     assert np.abs(Jn - (np.eye(3) - 0.5 * so3.hat(v))).max() > 0.005  # the other sign is wrong
 
 
-@pytest.mark.parametrize("build", eskf_derivation.BUILDERS, ids=lambda b: b.__name__)
+@pytest.mark.parametrize("build", BUILDERS, ids=lambda b: b.__name__)
 def test_every_checked_equation_can_fail(build):
     import dataclasses
 
@@ -71,11 +73,19 @@ def test_every_checked_equation_can_fail(build):
         assert not wrong.holds(), eq.label
 
 
-def test_derivations_can_join_the_course_registry():
+def test_the_eskf_derivations_close_the_course_registry():
     from kalman_course import symbolic
 
-    names = [b.__name__ for b in eskf_derivation.BUILDERS]
-    assert not set(names) & {b.__name__ for b in symbolic._BUILDERS} or all(
-        symbolic.derivation(n).verify() for n in names)
-    for build in eskf_derivation.BUILDERS:
+    names = [build.__name__ for build in BUILDERS]
+    assert list(symbolic.registry.builders())[-3:] == names
+    for build in BUILDERS:
+        assert symbolic.derivation(build.__name__) is build()
         assert build().name == build.__name__
+
+
+def test_F_t_function_validates_its_arguments():
+    F_sym = eskf_derivation.error_dynamics_function()
+    with pytest.raises(ValueError, match=r"R must have shape \(3, 3\)"):
+        F_sym(np.eye(2), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3))
+    with pytest.raises(ValueError, match="omega_m must be finite"):
+        F_sym(np.eye(3), np.zeros(3), [0.0, np.nan, 0.0], np.zeros(3), np.zeros(3))

@@ -279,7 +279,7 @@ I2, Z2 = np.eye(2), np.zeros(2)
 
 CASES = [
     (lambda: gaussian_pdf(np.zeros(3), Z2, I2), r"x must have shape \(2,\)"),
-    (lambda: gaussian_pdf(np.zeros((4, 3)), Z2, I2), r"x must have shape \(m, 2\)"),
+    (lambda: gaussian_pdf(np.zeros((4, 3)), Z2, I2), r"x must have shape \(N, 2\)"),
     (lambda: gaussian_pdf(np.zeros((1, 1, 2)), Z2, I2), r"x must be one point"),
     (lambda: gaussian_logpdf(Z2, np.zeros((2, 1)), I2), r"mean must be a 1-D vector"),
     (lambda: gaussian_logpdf(Z2, Z2, np.eye(3)), r"cov must have shape \(2, 2\)"),

@@ -7,8 +7,8 @@ import pytest
 from scipy import stats
 
 from kalman_course.filters.kf import run_kf
-from kalman_course.evaluation.metrics import (chi2_bounds, chi2_cdf, chi2_ppf, nees, nis, rmse,
-                                   share_inside)
+from kalman_course.evaluation.metrics import (chi2_bounds, chi2_cdf, chi2_ppf, nees, nis,
+                                              position_rmse, rmse, share_inside)
 
 DOFS = [0.5, 1, 2, 3, 4.5, 6, 15, 40, 150, 1000, 4500]
 
@@ -24,6 +24,26 @@ def test_rmse_hand_values():
     assert rmse(est, truth, axis=None) == pytest.approx(math.sqrt(26 / 4))
     np.testing.assert_allclose(rmse(est, truth, axis=1), [math.sqrt(0.5), math.sqrt(12.5)])
     assert isinstance(rmse([1.0, 2.0], [1.0, 0.0]), float)
+
+
+def test_position_rmse_hand_values():
+    # errors (3, 4, 0) and (0, 0, 12): norms 5 and 12, RMS sqrt((25 + 144) / 2)
+    est = np.array([[3.0, 4.0, 0.0], [1.0, 1.0, 13.0]])
+    truth = np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]])
+    assert position_rmse(est, truth) == pytest.approx(math.sqrt(169 / 2), rel=1e-15)
+    assert isinstance(position_rmse(est, truth), float)
+    # one row: the error's norm
+    assert position_rmse([[3.0, 4.0]], [[0.0, 0.0]]) == pytest.approx(5.0, rel=1e-15)
+
+
+@pytest.mark.parametrize("estimate, truth, match", [
+    (np.zeros(3), np.zeros(3), r"estimate must have shape \(N, d\)"),
+    (np.zeros((2, 3)), np.zeros((3, 2)), r"estimate and truth must have the same shape"),
+    ("a", "b", r"estimate must be an array of real numbers"),
+])
+def test_position_rmse_bad_input(estimate, truth, match):
+    with pytest.raises(ValueError, match=match):
+        position_rmse(estimate, truth)
 
 
 def test_rmse_propagates_nan_rather_than_hiding_it():
@@ -175,12 +195,12 @@ CASES = [
     (lambda: nis([1.0], [[0.0]]), r"S must be positive definite"),
     (lambda: nis(np.ones((2, 1)), np.stack([[[1.0]], [[-1.0]]])), r"S must be positive definite, S\[1\]"),
     (lambda: nis(np.zeros((1, 2)), np.eye(3)), r"S must have shape \(1, 2, 2\) or \(2, 2\)"),
-    (lambda: chi2_cdf(1.0, 0), r"dof must be a positive"),
-    (lambda: chi2_cdf(1.0, [1, -2]), r"dof must be a positive"),
+    (lambda: chi2_cdf(1.0, 0), r"dof must be a finite positive number"),
+    (lambda: chi2_cdf(1.0, [1, -2]), r"dof must be a finite positive number"),
     (lambda: chi2_ppf(1.5, 2), r"p must be a probability in \[0, 1\]"),
     (lambda: chi2_ppf(-0.1, 2), r"p must be a probability"),
-    (lambda: chi2_ppf(0.5, math.inf), r"dof must be a positive, finite"),
-    (lambda: chi2_bounds(0), r"dof must be a positive"),
+    (lambda: chi2_ppf(0.5, math.inf), r"dof must be a finite positive number"),
+    (lambda: chi2_bounds(0), r"dof must be a finite positive number"),
     (lambda: chi2_bounds(2, n_runs=0), r"n_runs must be a positive integer"),
     (lambda: chi2_bounds(2, n_runs=2.5), r"n_runs must be a positive integer"),
     (lambda: chi2_bounds(2, confidence=1.0), r"confidence must lie strictly between 0 and 1"),

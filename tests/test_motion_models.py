@@ -1,11 +1,10 @@
 """Planar motion models and the radar observation: derived Jacobians against finite
-differences, the ω → 0 branch, and agreement with the synthetic data's own CTRV."""
+differences, the ω → 0 branch, and agreement with independent numerics (ODE integration)."""
 
 import numpy as np
 import pytest
 
 from kalman_course import symbolic
-from kalman_course.data import synthetic
 
 MODELS = symbolic.MOTION_MODELS
 
@@ -37,7 +36,8 @@ OMEGAS = [None, 1e-9, 0.0, -3e-4]
 @pytest.mark.parametrize("model", MODELS)
 @pytest.mark.parametrize("omega", OMEGAS)
 def test_motion_jacobian_matches_finite_differences(model, omega):
-    rng = np.random.default_rng(hash((model, str(omega))) % 2**32)
+    # a fixed seed per case (hash() of a str changes from one process to the next)
+    rng = np.random.default_rng(10 * MODELS.index(model) + OMEGAS.index(omega))
     for _ in range(5):
         x = _random_state(model, rng, omega)
         T = rng.uniform(0.01, 1.0)
@@ -80,19 +80,33 @@ def test_turning_models_are_continuous_through_the_series_switch(model):
     np.testing.assert_allclose(f[:2], x[:2] + dist * np.array([np.cos(x[3]), np.sin(x[3])]), atol=1e-12)
 
 
-def test_symbolic_ctrv_agrees_with_the_synthetic_generator():
+def test_ctrv_step_is_the_flow_of_its_ode():
+    # independent numerics: the CTRV ODE integrated by scipy, then the noise entering as B w
+    from scipy.integrate import solve_ivp
+
+    def ctrv_ode(t, s):
+        return [s[2] * np.cos(s[3]), s[2] * np.sin(s[3]), 0.0, s[4], 0.0]
+
     rng = np.random.default_rng(11)
-    # (below |ω| = 1e-6 rad/s the generator drops the turn: a sub-micrometre difference)
-    for omega, atol in ((None, 1e-9), (None, 1e-9), (0.0, 1e-12), (1e-7, 1e-6)):
+    for omega in (None, None, 0.0, 1e-7, -3e-4):  # closed form and series branch
         x = _random_state("ctrv", rng, omega)
         w = rng.normal(size=2)
         for T in (0.05, 0.7):
-            np.testing.assert_allclose(symbolic.ctrv_step(x, T, w),
-                                       synthetic.ctrv_step(x, T, w[0], w[1]), rtol=1e-12, atol=atol)
-    sc = synthetic.ctrv_lidar_radar(0, duration=2.0)
-    for k in sc.radar_index:
-        np.testing.assert_allclose(symbolic.radar_observation(sc.x[k]), synthetic.radar_measurement(sc.x[k]),
-                                   rtol=1e-12, atol=1e-12)
+            sol = solve_ivp(ctrv_ode, (0.0, T), x, rtol=1e-12, atol=1e-12)
+            np.testing.assert_allclose(symbolic.ctrv_step(x, T), sol.y[:, -1], rtol=1e-9, atol=1e-9)
+            np.testing.assert_allclose(symbolic.ctrv_step(x, T, w) - symbolic.ctrv_step(x, T),
+                                       symbolic.ctrv_noise_jacobian(x, T) @ w, rtol=1e-12, atol=1e-12)
+
+
+def test_radar_observation_is_range_bearing_range_rate():
+    rng = np.random.default_rng(12)
+    for _ in range(5):
+        x = _random_state("ctrv", rng)
+        p, v = x[:2], x[2] * np.array([np.cos(x[3]), np.sin(x[3])])
+        rho = np.hypot(*p)
+        expected = [rho, np.arctan2(p[1], p[0]), p @ v / rho]
+        np.testing.assert_allclose(symbolic.radar_observation(x), expected, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(symbolic.radar_observation(np.r_[p, v], "cv"), expected, rtol=1e-12, atol=1e-12)
 
 
 def test_ctra_with_zero_acceleration_is_ctrv():
@@ -145,8 +159,14 @@ def test_radar_rejects_the_origin_and_bad_shapes():
 def test_models_validate_their_inputs():
     with pytest.raises(ValueError, match="model must be one of"):
         symbolic.motion_step("bicycle", np.zeros(5), 0.1)
-    with pytest.raises(ValueError, match=r"shape \(5,\)"):
+    with pytest.raises(ValueError, match=r"x must have shape \(5,\).*'p_x', 'p_y', 'v', 'psi', 'omega'"):
         symbolic.motion_step("ctrv", np.zeros(4), 0.1)
+    with pytest.raises(ValueError, match="T must be a real number"):
+        symbolic.motion_step("cv", np.zeros(4), "0.1")
+    with pytest.raises(ValueError, match="w must have shape"):
+        symbolic.motion_step("ca", np.zeros(6), 0.1, w=np.zeros(3))
+    with pytest.raises(ValueError, match="sigmas must have shape"):
+        symbolic.motion_process_noise("ctra", np.ones(6), 0.1, [1.0])
     with pytest.raises(ValueError, match="T must be"):
         symbolic.motion_step("ctrv", np.zeros(5), -1.0)
     with pytest.raises(ValueError, match="finite"):
@@ -157,6 +177,24 @@ def test_models_validate_their_inputs():
 def test_model_derivations_are_registered_and_prove(name):
     d = symbolic.derivations()[name]
     assert d.verify()
+
+
+@pytest.mark.parametrize("model, name", zip(MODELS, ["cv_planar_model", "ca_model", "ctrv_model", "ctra_model"]))
+def test_state_names_are_the_derivations_state(model, name):
+    d = symbolic.derivation(name)
+    state = [str(s) for s in d["initial"].rhs]  # f(x, 0, 0) = x
+    assert list(symbolic.motion_state_names(model)) == state
+
+
+def test_numeric_models_are_lambdified_once():
+    from kalman_course.symbolic import motion, radar
+
+    x = np.array([1.0, 2.0, 3.0, 0.4, 0.3])
+    symbolic.ctrv_step(x, 0.1)
+    symbolic.radar_observation(x)
+    assert motion._model_functions("ctrv") is motion._model_functions("ctrv")
+    assert radar._radar_functions() is radar._radar_functions()
+    assert motion._model_functions.cache_info().currsize >= 1
 
 
 # ---------------------------------------------------------------- chapter 04 on KITTI

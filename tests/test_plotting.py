@@ -233,3 +233,182 @@ def test_no_global_style_changes():
     plotting.plot_covariance_ellipse(ax, [0, 0], np.eye(2))
     after = dict(matplotlib.rcParams)
     assert before == after
+
+
+# --------------------------------------------------------------------------------------
+# the subpackage: vocabulary and per-chapter modules
+# --------------------------------------------------------------------------------------
+
+def test_vocabulary_is_re_exported_by_the_subpackage():
+    from kalman_course.plotting import eskf, vocabulary
+    assert plotting.plot_truth is vocabulary.plot_truth and plotting.COLORS is vocabulary.COLORS
+    assert plotting.plot_pose_errors is eskf.plot_pose_errors
+    assert set(plotting.__all__) >= set(vocabulary.__all__)
+    assert all(hasattr(plotting, name) for name in plotting.__all__)
+
+
+def test_consistency_curves_share_one_band(ax):
+    t = np.arange(10.0)
+    lines, band = plotting.plot_consistency_curves(ax, t, {"tuned": np.full(10, 6.0), "Q / 100": t + 1.0},
+                                                    1.2, 14.4)
+    assert [line.get_label() for line in lines] == ["tuned", "Q / 100"]
+    assert to_rgba(lines[0].get_color()) == to_rgba(COLORS["estimate"])
+    assert isinstance(band, PolyCollection) and ax.get_yscale() == "log"
+    assert len(ax.collections) == 1
+    with pytest.raises(ValueError, match="curves"):
+        plotting.plot_consistency_curves(ax, t, {}, 1.0, 2.0)
+    with pytest.raises(ValueError, match="curves"):
+        plotting.plot_consistency_curves(ax, t, {"short": np.ones(3)}, 1.0, 2.0)
+    with pytest.raises(ValueError, match="lo"):
+        plotting.plot_consistency_curves(ax, t, {"a": t}, 3.0, 2.0)
+
+
+def test_flag_spans_finds_every_run():
+    t = np.arange(10.0)
+    flags = np.array([1, 1, 0, 0, 1, 1, 1, 0, 0, 1], dtype=bool)
+    np.testing.assert_array_equal(plotting.flag_spans(t, flags), [[0, 1], [4, 6], [9, 9]])
+    assert plotting.flag_spans(t, np.zeros(10, bool)).shape == (0, 2)
+    with pytest.raises(ValueError, match="flags"):
+        plotting.flag_spans(t, np.ones(9, bool))
+
+
+def test_shade_spans_and_curves(ax):
+    patches = plotting.shade_spans(ax, [[0.0, 1.0], [2.0, 3.0]], label="gap")
+    assert len(patches) == 2 and [p.get_label() for p in patches][0] == "gap"
+    assert plotting.shade_spans(ax, np.empty((0, 2))) == []
+    with pytest.raises(ValueError, match="spans"):
+        plotting.shade_spans(ax, [[1.0, 0.0]])
+    lines = plotting.plot_curves(ax, {"a": ([0, 1], [1, 2]), "b": ([0, 1, 2], [1, np.nan, 3])})
+    assert len(lines) == 2 and len(ax.lines) == 2
+    with pytest.raises(ValueError, match="curves"):
+        plotting.plot_curves(ax, {"a": ([0, 1], [1, 2, 3])})
+
+
+def test_plot_track_draws_three_lines_and_checks_shapes(ax):
+    xy = np.column_stack([np.arange(5.0), np.arange(5.0) ** 2, np.zeros(5)])
+    lines = plotting.plot_track(ax, xy, xy + 0.1, xy[::2] - 0.2, estimate_label="ESKF")
+    assert [line.get_label() for line in lines] == ["truth", "measurements", "ESKF"]
+    assert len(plotting.plot_track(ax, xy, xy)) == 2
+    with pytest.raises(ValueError, match="estimate_xy"):
+        plotting.plot_track(ax, xy, np.arange(5.0))
+
+
+def _eskf_like(n=50, seed=0):
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 5.0, n)
+    std = np.full((n, 15), 0.1)
+    return t, 0.05 * rng.standard_normal((n, 3)), 0.001 * rng.standard_normal((n, 3)), std
+
+
+def test_pose_errors_grid_has_six_panels_with_bands():
+    t, dp, dtheta, std = _eskf_like()
+    fig = plotting.plot_pose_errors(t, dp, dtheta, std)
+    axes = fig.axes
+    assert len(axes) == 6
+    assert all(len(ax.collections) == 1 and isinstance(ax.collections[0], PolyCollection) for ax in axes)
+    assert [ax.get_title() for ax in axes[:3]] == [f"position error {a}" for a in "xyz"]
+    # attitude is drawn in degrees, with its band from columns 6-8 of std
+    line = [ln for ln in axes[3].lines if ln.get_label() == "error"][0]
+    np.testing.assert_allclose(line.get_ydata(), np.rad2deg(dtheta[:, 0]))
+    band_top = axes[3].collections[0].get_paths()[0].vertices[:, 1].max()
+    assert band_top == pytest.approx(3 * np.rad2deg(0.1))
+    with pytest.raises(ValueError, match="std"):
+        plotting.plot_pose_errors(t, dp, dtheta, std[:, :5])
+    with pytest.raises(ValueError, match="position_error"):
+        plotting.plot_pose_errors(t, dp[:-1], dtheta, std)
+
+
+def test_bias_figures():
+    t, _, _, std = _eskf_like()
+    fig = plotting.plot_bias_estimates(t, np.full((50, 3), 0.01), np.full((50, 3), 1e-5))
+    assert [len(ax.lines) for ax in fig.axes] == [3, 3]
+    np.testing.assert_allclose(fig.axes[1].lines[0].get_ydata(), np.rad2deg(1e-5) * 3600)
+    with pytest.raises(ValueError, match="gyro_bias"):
+        plotting.plot_bias_estimates(t, np.zeros((50, 3)), np.zeros((50, 2)))
+
+    class Run:
+        def __init__(self, scale):
+            self.t, self._std = t, std * scale
+
+        def std(self):
+            return self._std
+
+    fig = plotting.plot_bias_sigmas({"random walk": Run(1.0), "constant": Run(0.5)})
+    assert [len(ax.lines) for ax in fig.axes] == [2, 2]
+    assert all(ax.get_yscale() == "log" for ax in fig.axes)
+    assert fig.axes[0].get_title().endswith(", z")
+    with pytest.raises(ValueError, match="axis"):
+        plotting.plot_bias_sigmas({"a": Run(1.0)}, axis=3)
+    with pytest.raises(ValueError, match="results"):
+        plotting.plot_bias_sigmas({"a": object()})
+
+
+def test_outage_and_error_norm_figures():
+    t = np.linspace(300.0, 400.0, 101)
+    fig = plotting.plot_outage_error(t, np.abs(np.sin(t)), np.full(101, 0.5), (325.0, 355.0), title="outage")
+    (ax,) = fig.axes
+    labels = [text.get_text() for text in ax.get_legend().get_texts()]
+    assert "no observations" in labels and "horizontal error" in labels
+    with pytest.raises(ValueError, match="sigma"):
+        plotting.plot_outage_error(t, t, -np.ones(101), (325.0, 355.0))
+    with pytest.raises(ValueError, match="outage"):
+        plotting.plot_outage_error(t, t, np.ones(101), (355.0, 325.0))
+    fig = plotting.plot_error_norms({"off": (t, t * 0 + 1.0), "on": (t, t * 0 + 0.5)},
+                                    spans=[[310.0, 312.0], [330.0, 331.0]], span_label="interpolated")
+    (ax,) = fig.axes
+    assert len(ax.lines) == 2 and len(ax.patches) == 2
+
+
+class _MC:
+    def __init__(self, scale, n_runs=4, K=20):
+        rng = np.random.default_rng(int(scale * 10))
+        self.t = np.arange(K, dtype=float)
+        self.nees = scale * rng.chisquare(15, size=(n_runs, K))
+        self.nis = rng.chisquare(6, size=(n_runs, K))
+        self.n_runs = n_runs
+
+
+def test_monte_carlo_figure_draws_each_run_over_its_band():
+    fig = plotting.plot_monte_carlo({"tuned Q": _MC(1.0), "Q / 100": _MC(4.0)})
+    assert len(fig.axes) == 2
+    for ax in fig.axes:
+        assert len(ax.lines) == 2 and len(ax.collections) == 1
+    lo, hi = plotting.consistency.chi2_bounds(15, 4)
+    band = fig.axes[0].collections[0].get_paths()[0].vertices[:, 1]
+    assert band.min() == pytest.approx(lo) and band.max() == pytest.approx(hi)
+    with pytest.raises(ValueError, match="runs"):
+        plotting.plot_monte_carlo({"a": _MC(1.0), "b": _MC(1.0, n_runs=3)})
+
+
+def test_sensitivity_and_gating_figures():
+    from types import SimpleNamespace as Row
+    rows = [Row(q_factor=f, r_factor=1.0, ape_position=0.1 * f ** 0.1, ape_attitude_deg=0.05, nis=6.0 / f ** 0.2,
+                nees_pose=6.0 * f ** 0.1) for f in (0.1, 1.0, 10.0)]
+    fig = plotting.plot_sensitivity({"Q factor": ("q_factor", rows), "R factor": ("r_factor", rows[:1])},
+                                    (5.5, 6.5))
+    assert len(fig.axes) == 4
+    assert [len(ax.lines) for ax in fig.axes] == [2, 2, 3, 3]     # bottom: NIS, NEES, the dof line
+    with pytest.raises(ValueError, match="lo"):
+        plotting.plot_sensitivity({"Q factor": ("q_factor", rows)}, (6.5, 5.5))
+    t = np.linspace(0.0, 10.0, 101)
+    fig = plotting.plot_gating({"ungated": (t, t * 0 + 1.0), "gated (99 %)": (t, t * 0 + 0.1)},
+                               t, np.full(101, 5.0), 16.81, outlier_times=[2.0, 2.1, 7.0])
+    ax1, ax2 = fig.axes
+    assert len(ax1.lines) == 2 and len(ax1.patches) == 3 and len(ax2.patches) == 3
+    assert to_rgba(ax1.lines[0].get_color()) == to_rgba(COLORS["prior"])
+    with pytest.raises(ValueError, match="threshold"):
+        plotting.plot_gating({"a": (t, t)}, t, t, -1.0)
+    with pytest.raises(ValueError, match="nis"):
+        plotting.plot_gating({"a": (t, t)}, t, t[:-1], 16.0)
+
+
+def test_track_with_zoom_has_two_panels_and_checks_zoom():
+    xy = np.column_stack([np.arange(20.0), np.sin(np.arange(20.0))])
+    fig = plotting.plot_track_with_zoom(xy, xy + 0.1, xy, zoom=((2, 5), (-1, 1)), title="turns")
+    ax1, ax2 = fig.axes
+    assert ax1.get_title() == "turns" and ax2.get_xlim() == (2.0, 5.0)
+    assert len(ax1.lines) == len(ax2.lines) == 3
+    with pytest.raises(ValueError, match="zoom"):
+        plotting.plot_track_with_zoom(xy, xy, zoom=((5, 2), (0, 1)))
+    with pytest.raises(ValueError, match="zoom"):
+        plotting.plot_track_with_zoom(xy, xy, zoom=(1, 2))

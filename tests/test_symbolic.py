@@ -11,9 +11,15 @@ import sympy as sp
 from sympy.matrices.expressions import BlockMatrix, Identity, ZeroMatrix
 
 from kalman_course import symbolic
-from kalman_course.symbolic import Derivation, Equation
+from kalman_course.symbolic import Derivation, Equation, equations, registry
+from kalman_course.symbolic.equations import exact_inverse
 
-NAMES = [build.__name__ for build in symbolic._BUILDERS]
+#: Every derivation of the course, in course order: chapters 02, 03, 04, 05, 08.
+EXPECTED_NAMES = ["schur_block_inverse", "linear_map_moments", "gaussian_conditioning",
+                  "kalman_gain", "kf_update_conditioning", "cv_model",
+                  "cv_planar_model", "ca_model", "ctrv_model", "ctra_model", "radar_model",
+                  "eskf_error_dynamics", "eskf_discretisation", "eskf_reset"]
+NAMES = list(registry.builders())
 
 
 def random_spd(rng, n):
@@ -23,14 +29,60 @@ def random_spd(rng, n):
 
 # ---------------------------------------------------------------- registry and proofs
 
-def test_registry_has_the_chapter_derivations():
-    assert NAMES[:6] == ["schur_block_inverse", "linear_map_moments", "gaussian_conditioning",
-                         "kalman_gain", "kf_update_conditioning", "cv_model"]
-    for name in NAMES:
-        d = symbolic.derivation(name)
+def test_registry_has_every_derivation_in_course_order():
+    assert NAMES == EXPECTED_NAMES
+    built = symbolic.derivations()
+    assert list(built) == EXPECTED_NAMES
+    for name, d in built.items():
         assert isinstance(d, Derivation) and d.name == name
+        assert symbolic.derivation(name) is d
         assert d.title and d.model
         assert any(e.checked for e in d.equations)
+
+
+def test_no_builder_of_the_package_is_left_out_of_the_registry():
+    import importlib
+    import pkgutil
+
+    marked = set()
+    for info in pkgutil.iter_modules(symbolic.__path__):
+        module = importlib.import_module(f"{symbolic.__name__}.{info.name}")
+        marked |= {obj.derivation_name for obj in vars(module).values()
+                   if hasattr(obj, "derivation_name") and obj.__module__ == module.__name__}
+    assert marked == set(EXPECTED_NAMES)
+
+
+def test_registry_refuses_two_builders_of_one_name(monkeypatch):
+    import types
+
+    from kalman_course.symbolic import gaussians
+
+    other = types.ModuleType("other_topic")
+
+    def schur_block_inverse():
+        return gaussians.schur_block_inverse()
+
+    schur_block_inverse.__module__ = other.__name__
+    other.schur_block_inverse = symbolic.derivation_builder(schur_block_inverse)
+    monkeypatch.setattr(registry, "TOPICS", (gaussians, other))
+    registry.builders.cache_clear()
+    try:
+        with pytest.raises(RuntimeError, match="two derivation builders are named 'schur_block_inverse'"):
+            registry.builders()
+    finally:
+        monkeypatch.undo()
+        registry.builders.cache_clear()
+    assert list(registry.builders()) == EXPECTED_NAMES
+
+
+def test_builder_must_return_the_derivation_of_its_name():
+    @symbolic.derivation_builder
+    def misnamed():
+        return Derivation("other", "t", "m", (Equation("a", sp.Integer(1), sp.Integer(1)),))
+
+    assert misnamed.derivation_name == "misnamed"
+    with pytest.raises(ValueError, match="misnamed"):
+        misnamed()
 
 
 def test_unknown_derivation_names_the_known_ones():
@@ -59,7 +111,7 @@ def _perturbed(eq: Equation) -> Equation:
 @pytest.mark.parametrize("name", NAMES)
 def test_every_explicit_equation_can_fail(name):
     d = symbolic.derivation(name)
-    explicit = [e for e in d.equations if e.checked and not symbolic._has_matrix_symbols(e.lhs)
+    explicit = [e for e in d.equations if e.checked and not equations.has_matrix_symbols(e.lhs)
                 and (isinstance(e.rhs, sp.MatrixBase) or not isinstance(e.rhs, sp.MatrixExpr))]
     if not explicit:
         pytest.skip(f"{name} has only matrix-symbol identities")
@@ -83,7 +135,7 @@ def test_wrong_block_formulas_fail():
     # explicit 3x3 (exact arithmetic): the Schur complement with the wrong sign is wrong
     a, b = symbolic.symbol_matrix("a", 2, 2), symbolic.symbol_matrix("b", 2, 1)
     c, dd = symbolic.symbol_matrix("c", 1, 2), symbolic.symbol_matrix("d", 1, 1)
-    f = symbolic._Exact(a, b, c, dd)
+    f = equations.ExactArithmetic(a, b, c, dd)
     a, b, c, dd = f(a), f(b), f(c), f(dd)
     M = a.hstack(b).vstack(c.hstack(dd))
     Di = dd.inv()
@@ -100,9 +152,9 @@ def test_wrong_gain_is_not_stationary():
     K = symbolic.symbol_matrix("k", 2, 1)
     trace = ((sp.eye(2) - K * G) * P * (sp.eye(2) - K * G).T + K * R * K.T).trace()
     grad = sp.Matrix([sp.diff(trace, k) for k in K])
-    for gain, expected in ((P * G.T * symbolic._inv(G * P * G.T + R), True),
-                           (P * G.T * symbolic._inv(R), False),
-                           (P * G.T * symbolic._inv(G * P * G.T), False)):
+    for gain, expected in ((P * G.T * exact_inverse(G * P * G.T + R), True),
+                           (P * G.T * exact_inverse(R), False),
+                           (P * G.T * exact_inverse(G * P * G.T), False)):
         at = dict(zip(K, gain))
         assert Equation("stationary", grad.subs(at, simultaneous=True), sp.zeros(2, 1)).holds() is expected
 
@@ -114,9 +166,9 @@ def test_wrong_conditional_covariance_fails():
     e = symbolic.symbol_matrix("e", 2, 1)
     f = symbolic.symbol_matrix("f", 1, 1)
     Sxx, Sxy, Syy = S[:2, :2], S[:2, 2:], S[2:, 2:]
-    wrong_cov = Sxx + Sxy * symbolic._inv(Syy) * Sxy.T  # sign flipped
-    r = e - Sxy * symbolic._inv(Syy) * f
-    wrong_split = (r.T * symbolic._inv(wrong_cov) * r)[0, 0] + (f.T * symbolic._inv(Syy) * f)[0, 0]
+    wrong_cov = Sxx + Sxy * exact_inverse(Syy) * Sxy.T  # sign flipped
+    r = e - Sxy * exact_inverse(Syy) * f
+    wrong_split = (r.T * exact_inverse(wrong_cov) * r)[0, 0] + (f.T * exact_inverse(Syy) * f)[0, 0]
     assert not dataclasses.replace(eq, rhs=wrong_split).holds()
 
 
@@ -358,6 +410,12 @@ def test_cv_rejects_bad_time_steps(bad):
         symbolic.cv_transition(bad)
 
 
+@pytest.mark.parametrize("bad", ["2", True, None, -1.0, np.inf])
+def test_cv_rejects_bad_noise_levels(bad):
+    with pytest.raises(ValueError, match="sigma_a must be"):
+        symbolic.cv_process_noise(0.1, bad)
+
+
 def test_cv_rejects_bad_arguments():
     with pytest.raises(ValueError, match="dim"):
         symbolic.cv_transition(1.0, dim=0)
@@ -371,4 +429,6 @@ def test_cv_rejects_bad_arguments():
 
 
 def test_lambdified_functions_are_cached():
-    assert symbolic._cv_functions() is symbolic._cv_functions()
+    from kalman_course.symbolic import kalman
+
+    assert kalman._cv_functions() is kalman._cv_functions()

@@ -1,21 +1,17 @@
-"""Tuning and consistency (chapter 09): NEES/NIS statistics, Monte Carlo, sensitivity, gating.
+"""Tuning and consistency (chapter 09): Monte Carlo, sensitivity, gating, numerical failures.
 
-A filter is *consistent* when its errors are as large as its covariance says: the NEES
-:math:`e^T P^{-1} e` (e = estimate − truth) and the NIS :math:`\\nu^T S^{-1} \\nu` are then
-chi-square with as many degrees of freedom as the vector has components. This module
-builds the chapter's experiments on top of :mod:`kalman_course.evaluation.metrics` (the statistics
-and their chi-square bounds) and :mod:`kalman_course.filters.eskf` (the filter):
+A filter is *consistent* when its errors are as large as its covariance says. The
+statistics that test this (NEES/NIS summaries, verdicts, the chi-square gate) are
+:mod:`kalman_course.evaluation.consistency`; this module builds the chapter's experiments
+on them and on :mod:`kalman_course.filters.eskf`:
 
-- :func:`summarise` — mean of a NEES/NIS record, its two-sided bounds and the share of
-  single values inside the per-step bounds, as one :class:`Consistency` record;
-- :func:`verdict` — "consistent", "overconfident" (P or S too small) or "underconfident";
 - :func:`monte_carlo` — the ESKF on the synthetic IMU trajectory (exact truth), n seeded
   runs, 15-state NEES and 6-dof NIS per step;
 - :func:`scaled_config` and :func:`sensitivity` — the KITTI ESKF over several noise settings;
-- :func:`gate`, :func:`inject_outliers` and :func:`run_gated` — chi-square innovation
-  gating against seeded map-matching failures in the lidar poses;
-- :func:`simple_update`, :func:`joseph_update`, :func:`symmetrise` and
-  :func:`covariance_health` — the numerical-failure gallery.
+- :func:`inject_outliers` and :func:`run_gated` — chi-square innovation gating against
+  seeded map-matching failures in the lidar poses;
+- :func:`simple_update`, :func:`joseph_update`, :func:`symmetrise`,
+  :func:`covariance_health` and :func:`roundoff_experiment` — the numerical-failure gallery.
 
 Everything random comes from ``numpy.random.default_rng(seed)``.
 """
@@ -23,111 +19,27 @@ Everything random comes from ``numpy.random.default_rng(seed)``.
 from __future__ import annotations
 
 import dataclasses
-import types
 from dataclasses import dataclass
 
 import numpy as np
 
-from kalman_course.filters import eskf
-from kalman_course.evaluation import metrics
-from kalman_course.core import linalg, so3, validation
+from kalman_course.core import linalg, so3
+from kalman_course.core.observations import PoseObservations
 from kalman_course.data import imu_trajectory, simulate_lidar_poses
+from kalman_course.evaluation import metrics
+from kalman_course.evaluation.consistency import gate_threshold, verdict
+from kalman_course.evaluation.pose import evaluate
+from kalman_course.filters import eskf
 from kalman_course.filters.eskf_config import EskfConfig, load_config
 
 __all__ = [
-    "Consistency", "summarise", "verdict", "VERDICTS",
     "MonteCarloResult", "monte_carlo", "full_state_error",
     "scaled_config", "SensitivityRow", "sensitivity",
-    "gate_threshold", "gate", "inject_outliers", "GatedRun", "run_gated",
+    "inject_outliers", "GatedRun", "run_gated",
     "simple_update", "joseph_update", "symmetrise", "covariance_health", "roundoff_experiment",
 ]
 
-#: The three answers of :func:`verdict`.
-VERDICTS = ("consistent", "overconfident", "underconfident")
 _POSE_IDX = np.array([0, 1, 2, 6, 7, 8])
-
-
-# ---------------------------------------------------------------------------------------
-# Summaries and verdicts
-# ---------------------------------------------------------------------------------------
-
-@dataclass(frozen=True)
-class Consistency:
-    """A NEES or NIS record summarised against its chi-square bounds.
-
-    Attributes
-    ----------
-    dof : int
-        Degrees of freedom of one value.
-    n_runs : int
-        How many independent values each averaged value is made of (1 for a single run).
-    mean : float
-        Mean of the record (NaN entries skipped).
-    mean_lo, mean_hi : float
-        Two-sided bounds for that mean, treating every value as independent
-        (``chi2_bounds(dof, n_values * n_runs)``). Only for white sequences such as the NIS
-        of one run is this the right test; a NEES record over time is correlated.
-    lo, hi : float
-        Two-sided bounds for one (run-averaged) value, ``chi2_bounds(dof, n_runs)``.
-    share_inside : float
-        Share of the values inside [lo, hi]; about ``confidence`` for a consistent filter.
-    confidence : float
-    """
-
-    dof: int
-    n_runs: int
-    mean: float
-    mean_lo: float
-    mean_hi: float
-    lo: float
-    hi: float
-    share_inside: float
-    confidence: float
-
-
-def summarise(values, dof: int, n_runs: int = 1, confidence: float = 0.95) -> Consistency:
-    """Summarise NEES/NIS ``values`` (any shape; NaN skipped) of ``dof`` degrees of freedom.
-
-    Parameters
-    ----------
-    values : array_like
-        One value per step, each already averaged over ``n_runs`` runs if n_runs > 1.
-    dof : int
-        Dimension of the vector each value was computed from.
-    n_runs : int
-        Number of runs averaged into each value.
-    confidence : float
-        Mass of the two-sided intervals.
-    """
-    v = np.asarray(values, dtype=float).ravel()
-    v = v[~np.isnan(v)]
-    if v.size == 0:
-        raise ValueError("values must contain at least one non-NaN value")
-    lo, hi = metrics.chi2_bounds(dof, n_runs, confidence)
-    mlo, mhi = metrics.chi2_bounds(dof, int(n_runs) * v.size, confidence)
-    return Consistency(int(dof), int(n_runs), float(np.mean(v)), mlo, mhi, lo, hi,
-                       metrics.share_inside(v, lo, hi), float(confidence))
-
-
-def verdict(values, dof: int, confidence: float = 0.95) -> str:
-    """Judge a white NIS (or independent NEES) record by its mean and the two-sided bounds.
-
-    The mean of N independent χ²(dof) values, times N, is χ²(N·dof). Above the upper bound
-    the errors are larger than the filter believes: it is **overconfident** (P or S too
-    small: raise Q or R). Below the lower bound it is **underconfident**. Inside:
-    **consistent**.
-
-    Returns
-    -------
-    str
-        One of :data:`VERDICTS`.
-    """
-    s = summarise(values, dof, 1, confidence)
-    if s.mean > s.mean_hi:
-        return "overconfident"
-    if s.mean < s.mean_lo:
-        return "underconfident"
-    return "consistent"
 
 
 # ---------------------------------------------------------------------------------------
@@ -220,7 +132,7 @@ def monte_carlo(n_runs: int = 20, seed: int = 0, duration: float = 20.0, *, proc
         sc = imu_trajectory(seed + i, duration=duration, accel_bias0=ba0, gyro_bias0=bw0)
         cfg = _synthetic_config(sc, process_scale, lidar_sigma, lidar_attitude_deg)
         sel = np.arange(lidar_every, len(sc.t), lidar_every)
-        poses = types.SimpleNamespace(t=sc.t[sel], position=sc.position[sel], rotation=sc.rotation[sel])
+        poses = PoseObservations(sc.t[sel], sc.position[sel], sc.rotation[sel])
         lidar = simulate_lidar_poses(poses, seed + i, lidar_sigma, lidar_attitude_deg)
         # nominal = true + error (error = nominal − true)
         x0 = eskf.NominalState(sc.position[0] + dx0[0:3], sc.velocity[0] + dx0[3:6],
@@ -310,7 +222,7 @@ def sensitivity(excerpt, settings, config="kitti_lidar", lidar=None) -> list[Sen
     rows = []
     for label, qf, rf in settings:
         res = eskf.run(excerpt.imu, s0, scaled_config(config, qf, rf), excerpt.gravity, lidar=lidar, start=k0)
-        m = eskf.evaluate(res.t, res.position, res.rotation, excerpt.truth, res.P)
+        m = evaluate(res.t, res.position, res.rotation, excerpt.truth, res.P)
         nis = metrics.nis(np.array(res.innovation), np.array(res.S))
         rows.append(SensitivityRow(label, float(qf), float(rf), m["ape_position"], m["ape_attitude_deg"],
                                    m["nees_pose"], metrics.share_inside(m["nees"], lo, hi),
@@ -321,26 +233,6 @@ def sensitivity(excerpt, settings, config="kitti_lidar", lidar=None) -> list[Sen
 # ---------------------------------------------------------------------------------------
 # Innovation gating
 # ---------------------------------------------------------------------------------------
-
-def gate_threshold(dof: int, confidence: float = 0.99) -> float:
-    """The NIS above which an innovation of ``dof`` components is rejected: χ²_dof quantile."""
-    return metrics.chi2_ppf(confidence, dof)
-
-
-def gate(innovation, S, confidence: float = 0.99) -> bool:
-    """Chi-square gate: True (accept) when the NIS νᵀ S⁻¹ ν is at most the χ²_m quantile.
-
-    Parameters
-    ----------
-    innovation : array_like, shape (m,)
-    S : array_like, shape (m, m)
-        Innovation covariance, symmetric positive definite.
-    confidence : float
-        Probability that a consistent filter accepts a correct observation.
-    """
-    value = metrics.nis(innovation, S)
-    return bool(value <= gate_threshold(np.size(innovation), confidence))
-
 
 def inject_outliers(lidar, seed: int, n_bursts: int = 3, burst_length: int = 5, offset: float = 3.0,
                     yaw_deg: float = 3.0, skip: int = 20):
@@ -452,7 +344,7 @@ def run_gated(excerpt, lidar=None, config="kitti_lidar", confidence: float | Non
     accepted = np.ones(len(index), dtype=bool)
     reruns = 0
     while True:
-        used = types.SimpleNamespace(t=times[accepted], position=p_obs[accepted], rotation=R_obs[accepted])
+        used = PoseObservations(times[accepted], p_obs[accepted], R_obs[accepted])
         res = eskf.run(excerpt.imu, s0, cfg, excerpt.gravity, lidar=used, start=k0, output_times=times)
         reruns += 1
         rows = np.searchsorted(res.t, times - 1e-9)
@@ -484,26 +376,89 @@ def run_gated(excerpt, lidar=None, config="kitti_lidar", confidence: float | Non
 # Numerical failures of the covariance update and their repair
 # ---------------------------------------------------------------------------------------
 
+def _float(value) -> np.ndarray:
+    """``value`` as an array of its own floating type (float32 stays float32), else float64."""
+    arr = np.asarray(value)
+    return arr if np.issubdtype(arr.dtype, np.floating) else arr.astype(float)
+
+
 def simple_update(P, K, G) -> np.ndarray:
-    """The short form P̂ = (I − K G) P̌: right only for the optimal gain, and not symmetrised."""
-    P, K, G = (np.asarray(a, dtype=float) for a in (P, K, G))
-    return (np.eye(P.shape[0]) - K @ G) @ P
+    """The short form P̂ = (I − K G) P̌: right only for the optimal gain, and not symmetrised.
+
+    Deliberately not :func:`kalman_course.core.linalg.short_update`, which symmetrises: the
+    gallery shows what this form does on its own (an asymmetric P for a gain that is not
+    proportional to P̌Gᵀ, and the round-off asymmetry of :func:`roundoff_experiment`).
+    Computed in the inputs' floating type.
+
+    Parameters
+    ----------
+    P : array_like, shape (n, n)
+        Prior covariance P̌.
+    K : array_like, shape (n, m)
+        The gain used, optimal or not.
+    G : array_like, shape (m, n)
+        Observation Jacobian.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, n)
+    """
+    P, K, G = _gallery_inputs(P, K, G)
+    return (np.eye(P.shape[0], dtype=P.dtype) - K @ G) @ P
 
 
 def joseph_update(P, K, G, R) -> np.ndarray:
-    """Joseph form P̂ = (I − K G) P̌ (I − K G)ᵀ + K R Kᵀ: valid for any gain, PSD by construction."""
-    P, K, G, R = (np.asarray(a, dtype=float) for a in (P, K, G, R))
-    A = np.eye(P.shape[0]) - K @ G
-    return A @ P @ A.T + K @ R @ K.T
+    """Joseph form P̂ = (I − K G) P̌ (I − K G)ᵀ + K R Kᵀ: valid for any gain, PSD by construction.
+
+    :func:`kalman_course.core.linalg.joseph_form` for array_like inputs, computed in the
+    inputs' floating type and, like :func:`simple_update`, not symmetrised: the round-off
+    experiment shows the small asymmetry it leaves (every filter of the course then calls
+    :func:`symmetrise`, as :func:`kalman_course.core.linalg.joseph_update` does).
+
+    Parameters
+    ----------
+    P : array_like, shape (n, n)
+        Prior covariance P̌.
+    K : array_like, shape (n, m)
+        The gain used, optimal or not.
+    G : array_like, shape (m, n)
+        Observation Jacobian.
+    R : array_like, shape (m, m)
+        Observation noise covariance.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, n)
+    """
+    P, K, G = _gallery_inputs(P, K, G)
+    R = _float(R)
+    if R.shape != (G.shape[0], G.shape[0]):
+        raise ValueError(f"R must have shape ({G.shape[0]}, {G.shape[0]}) to match G, got {R.shape}")
+    return linalg.joseph_form(P, K, G, R, I=np.eye(P.shape[0], dtype=P.dtype))
+
+
+def _gallery_inputs(P, K, G) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """P (n, n), K (n, m), G (m, n) of matching shapes, in their floating type."""
+    P, K, G = _float(P), _float(K), _float(G)
+    for arr, name in ((P, "P"), (K, "K"), (G, "G")):
+        if arr.ndim != 2 or not np.isfinite(arr).all():
+            raise ValueError(f"{name} must be a finite 2-D matrix, got shape {arr.shape}")
+    n = P.shape[0]
+    if P.shape != (n, n) or K.shape[0] != n or G.shape != (K.shape[1], n):
+        raise ValueError(f"need P (n, n), K (n, m) and G (m, n); got P {P.shape}, K {K.shape}, G {G.shape}")
+    return P, K, G
 
 
 def symmetrise(P) -> np.ndarray:
     """½ (P + Pᵀ): removes the antisymmetric part that round-off or a wrong form left.
 
     :func:`kalman_course.core.linalg.symmetrise` (what every filter in the course calls),
-    for any array_like.
+    for any array_like square matrix; computed in its floating type.
     """
-    return linalg.symmetrise(np.asarray(P, dtype=float))
+    P = _float(P)
+    if P.ndim != 2 or P.shape[0] != P.shape[1]:
+        raise ValueError(f"P must be a square matrix, got shape {P.shape}")
+    return linalg.symmetrise(P)
 
 
 def covariance_health(P) -> tuple[float, float]:
@@ -518,26 +473,31 @@ def roundoff_experiment(dtype=np.float64, form: str = "simple", symmetric: bool 
     """A 1-D constant-velocity filter with precise position fixes, computed in ``dtype``.
 
     A vague prior (variance ``p0``) meets fixes of variance ``r`` over ``steps`` steps with
-    the optimal gain; the covariance update is ``form`` ("simple" or "joseph"), optionally
-    followed by symmetrisation. Returns the worst asymmetry and the smallest eigenvalue seen
-    (see :func:`covariance_health`); a negative eigenvalue means P lost positive definiteness.
+    the optimal gain; the covariance update is ``form``: "simple" (:func:`simple_update`,
+    not symmetrised) or "joseph" (:func:`joseph_update`, not symmetrised either), optionally
+    followed by a symmetrisation, as every filter of the course does. Returns the worst
+    asymmetry and the smallest eigenvalue seen (see :func:`covariance_health`); a negative
+    eigenvalue means P lost positive definiteness.
     """
+    dtype = np.dtype(dtype).type
     if form not in ("simple", "joseph"):
         raise ValueError(f"form must be 'simple' or 'joseph', got {form!r}")
     F = np.array([[1.0, T], [0.0, 1.0]], dtype=dtype)
     Q = (q * np.array([[T ** 3 / 3, T ** 2 / 2], [T ** 2 / 2, T]])).astype(dtype)
     G = np.array([[1.0, 0.0]], dtype=dtype)
     R = np.array([[r]], dtype=dtype)
-    I = np.eye(2, dtype=dtype)
     P = np.diag([p0, p0]).astype(dtype)
     worst_asym, worst_eig = 0.0, np.inf
     for _ in range(steps):
-        P = (F @ P @ F.T + Q).astype(dtype)
-        K = (P @ G.T / (G @ P @ G.T + R)).astype(dtype)
-        A = (I - K @ G).astype(dtype)
-        P = (A @ P if form == "simple" else A @ P @ A.T + K @ R @ K.T).astype(dtype)
+        # not core.linalg.predict_covariance: it symmetrises P̌, which would hide what the
+        # unsymmetrised short form does to P (the point of the experiment)
+        P = F @ P @ F.T + Q
+        # K = P̌ Gᵀ S⁻¹. The kernel reads P̌ Gᵀ as (G P̌)ᵀ, true for a symmetric P̌; after an
+        # unsymmetrised short-form update P̌ is not symmetric, so hand it G P̌ᵀ = (P̌ Gᵀ)ᵀ
+        K = linalg.gain(G @ P.T, linalg.innovation_covariance(G @ P, G, R))
+        P = simple_update(P, K, G) if form == "simple" else joseph_update(P, K, G, R)
         if symmetric:
-            P = (0.5 * (P + P.T)).astype(dtype)
+            P = symmetrise(P)
         asym, eig = covariance_health(P.astype(float))
         worst_asym, worst_eig = max(worst_asym, asym), min(worst_eig, eig)
     return worst_asym, worst_eig

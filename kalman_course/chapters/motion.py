@@ -17,9 +17,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from kalman_course import symbolic
+from kalman_course.core.validation import as_scalar, as_vector
 from kalman_course.data import load_kitti
+from kalman_course.evaluation.metrics import position_rmse
 
-__all__ = ["kitti_model_states", "HorizonErrors", "horizon_errors"]
+__all__ = ["kitti_model_states", "HorizonErrors", "horizon_errors", "predicted_paths"]
+
+
+def _check_model(model: str) -> None:
+    if model not in symbolic.MOTION_MODELS:
+        raise ValueError(f"model must be one of {symbolic.MOTION_MODELS}, got {model!r}")
 
 
 def kitti_model_states(name: str, model: str, t=None, half_window: float = 0.5):
@@ -42,11 +49,13 @@ def kitti_model_states(name: str, model: str, t=None, half_window: float = 0.5):
     states : ndarray, shape (N, n)
         In the order of ``symbolic.motion_state_names(model)``.
     """
+    _check_model(model)
+    half_window = as_scalar(half_window, "half_window")
     ex = load_kitti(name)
     truth = ex.truth
     if t is None:
         t = truth.t[(truth.t >= truth.t[0] + half_window) & (truth.t <= truth.t[-1] - half_window)]
-    t = np.asarray(t, dtype=float)
+    t = as_vector(t, "t")
     now = truth.interpolate(t)
     before = truth.interpolate(t - half_window).velocity[:, :2]
     after = truth.interpolate(t + half_window).velocity[:, :2]
@@ -62,8 +71,6 @@ def kitti_model_states(name: str, model: str, t=None, half_window: float = 0.5):
         "ctrv": (p[:, 0], p[:, 1], speed, yaw, omega),
         "ctra": (p[:, 0], p[:, 1], speed, yaw, omega, long_acc),
     }
-    if model not in columns:
-        raise ValueError(f"model must be one of {symbolic.MOTION_MODELS}, got {model!r}")
     return t, np.column_stack(columns[model])
 
 
@@ -97,8 +104,31 @@ def horizon_errors(name: str, horizons=(0.5, 1.0, 2.0, 3.0, 5.0), models=symboli
     Start times are every ``start_every`` s where the car moves faster than
     ``speed_min`` m/s (heading is undefined at rest) and the longest horizon still lies
     inside the excerpt.
+
+    Parameters
+    ----------
+    name : str
+        KITTI excerpt.
+    horizons : array_like, shape (H,)
+        Prediction horizons, s, each > 0.
+    models : sequence of str
+        Models to compare, from ``symbolic.MOTION_MODELS``.
+    start_every : float
+        Spacing of the start times, s.
+    speed_min : float
+        Slowest speed at a start time, m/s.
+
+    Returns
+    -------
+    HorizonErrors
     """
-    horizons = np.asarray(horizons, dtype=float)
+    horizons = as_vector(horizons, "horizons")
+    if (horizons <= 0).any():
+        raise ValueError(f"horizons must be positive, got {horizons}")
+    for model in models:
+        _check_model(model)
+    start_every = as_scalar(start_every, "start_every")
+    speed_min = as_scalar(speed_min, "speed_min", allow_zero=True)
     truth = load_kitti(name).truth
     margin = 0.5
     starts = np.arange(truth.t[0] + margin, truth.t[-1] - margin - horizons.max(), start_every)
@@ -111,9 +141,8 @@ def horizon_errors(name: str, horizons=(0.5, 1.0, 2.0, 3.0, 5.0), models=symboli
         for i, model in enumerate(models):
             _, states = kitti_model_states(name, model, starts)
             pred = np.array([symbolic.motion_step(model, s, h)[:2] for s in states])
-            err = np.linalg.norm(pred - target, axis=1)
-            rms[i, j] = np.sqrt(np.mean(err**2))
-            p95[i, j] = np.percentile(err, 95)
+            rms[i, j] = position_rmse(pred, target)
+            p95[i, j] = np.percentile(np.linalg.norm(pred - target, axis=1), 95)
     return HorizonErrors(horizons, tuple(models), rms, p95, len(starts))
 
 
@@ -137,5 +166,3 @@ def predicted_paths(name: str, t0: float, horizon: float, models=symbolic.MOTION
         paths[model] = np.array([symbolic.motion_step(model, state[0], h)[:2] for h in steps])
     return t0 + steps, truth.interpolate(t0 + steps).position[:, :2], paths
 
-
-__all__ += ["predicted_paths"]

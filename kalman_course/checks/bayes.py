@@ -22,7 +22,7 @@ def _beliefs(n: int, seed: int, count: int) -> list[np.ndarray]:
     return [bayes.normalise(rng.gamma(0.5, size=n) + 1e-3) for _ in range(count)]
 
 
-@check("door_likelihood")
+@check
 def check_door_likelihood(sensor_likelihood):
     """The learner's ``sensor_likelihood(world, z, p_correct)`` builds p(z | x) for every cell."""
     for z in (0, 1):
@@ -37,7 +37,7 @@ def check_door_likelihood(sensor_likelihood):
             ], hint="p(z | x = i) = p_correct if world[i] == z else 1 - p_correct")
 
 
-@check("histogram_update")
+@check
 def check_histogram_update(histogram_update):
     """The learner's ``histogram_update(belief, likelihood)`` applies Bayes' rule."""
     n = len(CORRIDOR)
@@ -54,7 +54,7 @@ def check_histogram_update(histogram_update):
         ])
 
 
-@check("histogram_predict")
+@check
 def check_histogram_predict(histogram_predict):
     """The learner's ``histogram_predict(belief, transition)`` applies total probability."""
     n = len(CORRIDOR)
@@ -97,7 +97,7 @@ def corridor_scenario(seed: int = 7, steps: int = 12, p_correct: float = 0.85):
     return cells, z, bayes.circular_motion_model(n, step_probs), p_correct
 
 
-@check("histogram_filter")
+@check
 def check_histogram_filter(run_histogram_filter):
     """The learner's whole recursion on a seeded corridor run matches the reference."""
     n = len(CORRIDOR)

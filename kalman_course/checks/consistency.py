@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import functools
 import math
-import types
 
 import numpy as np
 
 from kalman_course.chapters import consistency
 from kalman_course.filters import eskf
 from kalman_course.evaluation import metrics
+from kalman_course.evaluation.pose import POSE_INDEX, evaluate
 from kalman_course.checks.harness import CheckFailed, call, check, expect_close
 from kalman_course.data import load_kitti
 from kalman_course.filters.eskf_config import load_config
@@ -24,7 +24,6 @@ from kalman_course.filters.eskf_config import load_config
 EXCERPT = "cruise"
 OUTLIER_SEED = 0
 VERDICT_SETTINGS = (("reference", 1.0, 1.0), ("R / 4", 1.0, 0.25), ("R x 4", 1.0, 4.0))
-_POSE = [0, 1, 2, 6, 7, 8]
 
 
 @functools.lru_cache(maxsize=None)
@@ -33,11 +32,11 @@ def nees_cases():
     ex = load_kitti(EXCERPT)
     k0, s0 = ex.initial_state()
     res = eskf.run(ex.imu, s0, load_config("kitti_lidar"), ex.gravity, lidar=ex.lidar, start=k0)
-    m = eskf.evaluate(res.t, res.position, res.rotation, ex.truth, res.P)
+    m = evaluate(res.t, res.position, res.rotation, ex.truth, res.P)
     e6 = np.concatenate([m["position_error"], m["attitude_error"]], axis=1)
     cases = []
     for k in np.linspace(5, len(res.t) - 1, 5).astype(int):
-        P6 = res.P[k][np.ix_(_POSE, _POSE)]
+        P6 = res.P[k][np.ix_(POSE_INDEX, POSE_INDEX)]
         cases.append((e6[k], P6))
         cases.append((e6[k, :3], P6[:3, :3]))
     return tuple(cases)
@@ -54,7 +53,7 @@ def prior_cases():
     k0, s0 = ex.initial_state()
     cfg = load_config("kitti_lidar")
     lid = ex.lidar
-    used = types.SimpleNamespace(t=lid.t[::2], position=lid.position[::2], rotation=lid.rotation[::2])
+    used = lid.select(slice(None, None, 2))
     held = np.arange(1, len(lid.t), 2)
     res = eskf.run(ex.imu, s0, cfg, ex.gravity, lidar=used, start=k0, output_times=lid.t[held])
     R = np.diag(cfg.lidar_std ** 2)
@@ -104,7 +103,7 @@ def _scalar(value, what: str) -> float:
     return float(arr.reshape(()))
 
 
-@check("consistency_nees")
+@check
 def check_consistency_nees(nees):
     """The learner's ``nees(error, P)`` on KITTI pose and position errors."""
     for e, P in nees_cases():
@@ -119,7 +118,7 @@ def check_consistency_nees(nees):
         ], hint="ε = eᵀ P⁻¹ e (np.linalg.solve(P, e) avoids forming the inverse)")
 
 
-@check("consistency_nis")
+@check
 def check_consistency_nis(nis):
     """The learner's ``nis(innovation, P_check, G, R)`` at held-out KITTI lidar poses."""
     for y, P, G, R in prior_cases():
@@ -136,7 +135,7 @@ def check_consistency_nis(nis):
         ], hint="ν̃ = νᵀ S⁻¹ ν with S = G P̌ Gᵀ + R")
 
 
-@check("chi2_interval")
+@check
 def check_chi2_interval(chi2_interval):
     """The learner's ``chi2_interval(dof, n_runs, confidence)`` for KITTI-sized records."""
     n_updates = len(load_kitti(EXCERPT).lidar.t) - 1          # one NIS per lidar pose after the first
@@ -164,7 +163,7 @@ def check_chi2_interval(chi2_interval):
         ], hint="lo, hi = F⁻¹((1 ∓ c)/2; dof · n_runs) / n_runs")
 
 
-@check("innovation_gate")
+@check
 def check_innovation_gate(gate):
     """The learner's ``gate(innovation, S, confidence)`` on the KITTI outlier run."""
     cases = gate_cases()
@@ -202,7 +201,7 @@ def check_innovation_gate(gate):
     raise CheckFailed("wrong gate decisions. Hint: " + hint)
 
 
-@check("consistency_verdict")
+@check
 def check_consistency_verdict(verdict):
     """The learner's ``verdict(nis_values, dof, confidence)`` on NIS records of three KITTI runs."""
     for label, values in verdict_cases():

@@ -12,8 +12,11 @@ import functools
 
 import numpy as np
 
-from kalman_course.filters import ekf
 from kalman_course import symbolic
+from kalman_course.chapters import beacons
+from kalman_course.core.angles import wrap_angle
+from kalman_course.core.linalg import gain, innovation_covariance, short_update
+from kalman_course.filters import ekf
 from kalman_course.checks.harness import CheckFailed, call, check, expect_close, expect_shape, expect_symmetric
 from kalman_course.chapters.motion import kitti_model_states
 
@@ -48,7 +51,7 @@ def _radar_mistakes(x):
                     "(p_x v_x + p_y v_y) / ρ, not the speed")]
 
 
-@check("radar_h")
+@check
 def check_radar_h(radar_h):
     """The learner's ``radar_h(x)`` for a CTRV state [p_x, p_y, v, ψ, ω]."""
     for x in radar_states():
@@ -58,7 +61,7 @@ def check_radar_h(radar_h):
                                                        "with v_x = v cos ψ, v_y = v sin ψ")
 
 
-@check("radar_jacobian")
+@check
 def check_radar_jacobian(radar_jacobian):
     """The learner's ``radar_jacobian(x)``, shape (3, 5), against SymPy's."""
     for x in radar_states():
@@ -75,7 +78,7 @@ def check_radar_jacobian(radar_jacobian):
                      hint="differentiate each row of h(x) with respect to [p_x, p_y, v, ψ, ω]")
 
 
-@check("radar_residual")
+@check
 def check_radar_residual(radar_residual):
     """The learner's ``radar_residual(y, y_pred)``: bearings wrapped to (−π, π]."""
     rng = np.random.default_rng(5)
@@ -83,7 +86,7 @@ def check_radar_residual(radar_residual):
     for x in radar_states():
         y_pred = symbolic.radar_observation(x)
         y = y_pred + np.array([0.3, 0.03, 0.3]) * rng.standard_normal(3)
-        y[1] = ekf.wrap_angle(y[1])
+        y[1] = wrap_angle(y[1])
         pairs.append((y, y_pred))
     # a target crossing the negative x axis, both ways
     pairs.append((np.array([25.0, -np.pi + 0.01, 1.0]), np.array([25.2, np.pi - 0.02, 1.1])))
@@ -101,9 +104,9 @@ def check_radar_residual(radar_residual):
 
 @functools.lru_cache(maxsize=None)
 def beacon_update_cases(count: int = 6):
-    """(x_check, P_check, y, beacons) from the reference IEKF on the chapter 06 KITTI scenario."""
-    sc = ekf.kitti_beacons()
-    ref = ekf.run_beacon_filter(sc, iterated=True)
+    """(x_check, P_check, y, beacon positions, R) from the reference IEKF on the chapter 06 KITTI scenario."""
+    sc = beacons.kitti_beacons()
+    ref = beacons.run_beacon_filter(sc, iterated=True)
     cases = []
     steps = np.linspace(1, len(sc.t) - 1, count).astype(int)
     for k in steps:
@@ -123,15 +126,15 @@ def _pair(result, what: str):
     return result
 
 
-@check("ekf_update")
+@check
 def check_ekf_update(ekf_update):
     """The learner's ``ekf_update(x_check, P_check, y, g, G, R, residual)`` → (x_hat, P_hat)."""
-    for x_check, P_check, y, beacons, R in beacon_update_cases():
-        g, G = ekf.beacon_observation(beacons), ekf.beacon_jacobian(beacons)
-        result = _pair(call(ekf_update, x_check, P_check, y, g, G, R, ekf.bearings_residual), "ekf_update")
-        ref = ekf.ekf_update(x_check, P_check, y, g, G, R, residual=ekf.bearings_residual)
+    for x_check, P_check, y, positions, R in beacon_update_cases():
+        g, G = beacons.beacon_observation(positions), beacons.beacon_jacobian(positions)
+        result = _pair(call(ekf_update, x_check, P_check, y, g, G, R, beacons.bearings_residual), "ekf_update")
+        ref = ekf.ekf_update(x_check, P_check, y, g, G, R, residual=beacons.bearings_residual)
         Gm = G(x_check)
-        linear = x_check + ref.K @ ekf.bearings_residual(y, Gm @ x_check)
+        linear = x_check + ref.K @ beacons.bearings_residual(y, Gm @ x_check)
         unwrapped = x_check + ref.K @ (y - g(x_check))
         expect_close(result[0], ref.x_hat, "x_hat", rtol=1e-7, atol=1e-8, mistakes=[
             (linear, "the predicted measurement is g(x̌), the nonlinear model; G x̌ is only its "
@@ -143,24 +146,29 @@ def check_ekf_update(ekf_update):
         expect_symmetric(result[1], "P_hat")
 
 
+def _gain_at(P_check, G_op, R):
+    """K = P̌ Gᵀ (G P̌ Gᵀ + R)⁻¹ for a Jacobian G_op evaluated at some linearisation point."""
+    GP = G_op @ P_check
+    return gain(GP, innovation_covariance(GP, G_op, R))
+
+
 def _iekf_step_reference(x_check, P_check, x_op, y, g, G, R):
     Gm = G(x_op)
-    S = Gm @ P_check @ Gm.T + R
-    K = np.linalg.solve(S, Gm @ P_check).T
-    r = ekf.bearings_residual(y, g(x_op))
+    K = _gain_at(P_check, Gm, R)
+    r = beacons.bearings_residual(y, g(x_op))
     return x_check + K @ (r - Gm @ (x_check - x_op)), K, r, Gm
 
 
-@check("iekf_mean_step")
+@check
 def check_iekf_mean_step(iekf_mean_step):
     """The learner's ``iekf_mean_step(x_check, P_check, x_op, y, g, G, R, residual)`` → x_next."""
-    for x_check, P_check, y, beacons, R in beacon_update_cases():
-        g, G = ekf.beacon_observation(beacons), ekf.beacon_jacobian(beacons)
+    for x_check, P_check, y, positions, R in beacon_update_cases():
+        g, G = beacons.beacon_observation(positions), beacons.beacon_jacobian(positions)
         # linearise at the prior, then at the first iterate
         x1 = _iekf_step_reference(x_check, P_check, x_check, y, g, G, R)[0]
         for x_op in (x_check, x1):
             expected, K, r, Gm = _iekf_step_reference(x_check, P_check, x_op, y, g, G, R)
-            got = expect_shape(call(iekf_mean_step, x_check, P_check, x_op, y, g, G, R, ekf.bearings_residual),
+            got = expect_shape(call(iekf_mean_step, x_check, P_check, x_op, y, g, G, R, beacons.bearings_residual),
                                (4,), "iekf_mean_step(...)")
             if x_op is x_check:
                 where = "at the first iteration (x_op = x̌)"
@@ -178,31 +186,31 @@ def check_iekf_mean_step(iekf_mean_step):
             ], hint="x_{i+1} = x̌ + K_i (r(y, g(x_i)) − G_i (x̌ − x_i)), with G_i and K_i at x_i")
 
 
-@check("iekf_update")
+@check
 def check_iekf_update(iekf_update):
     """The learner's ``iekf_update(x_check, P_check, y, g, G, R, residual, tol, max_iter)``
     → (x_hat, P_hat, iterations)."""
-    for x_check, P_check, y, beacons, R in beacon_update_cases():
-        g, G = ekf.beacon_observation(beacons), ekf.beacon_jacobian(beacons)
-        result = call(iekf_update, x_check, P_check, y, g, G, R, ekf.bearings_residual, 1e-6, 20)
+    for x_check, P_check, y, positions, R in beacon_update_cases():
+        g, G = beacons.beacon_observation(positions), beacons.beacon_jacobian(positions)
+        result = call(iekf_update, x_check, P_check, y, g, G, R, beacons.bearings_residual, 1e-6, 20)
         if not isinstance(result, tuple) or len(result) != 3:
             raise CheckFailed("iekf_update must return a tuple (x_hat, P_hat, iterations)")
-        ref = ekf.iekf_update(x_check, P_check, y, g, G, R, residual=ekf.bearings_residual, tol=1e-6,
+        ref = ekf.iekf_update(x_check, P_check, y, g, G, R, residual=beacons.bearings_residual, tol=1e-6,
                               max_iter=20)
         expect_close(result[0], ref.x_hat, "x_hat", rtol=1e-6, atol=1e-7,
                      hint="iterate x_op ← x̌ + K (r(y, g(x_op)) − G (x̌ − x_op)) until the step is "
                           "below tol")
         # covariance mistakes: the EKF's (G at x̌), or shrinking P inside the loop
         G0 = G(x_check)
-        K0 = np.linalg.solve(G0 @ P_check @ G0.T + R, G0 @ P_check).T
-        at_prior = (np.eye(4) - K0 @ G0) @ P_check
+        K0 = _gain_at(P_check, G0, R)
+        at_prior = short_update(P_check, K0, G0 @ P_check)
         P_loop = P_check
         x_op = x_check
         for _ in range(ref.iterations):
             Gi = G(x_op)
-            Ki = np.linalg.solve(Gi @ P_loop @ Gi.T + R, Gi @ P_loop).T
-            x_op = x_check + Ki @ (ekf.bearings_residual(y, g(x_op)) - Gi @ (x_check - x_op))
-            P_loop = (np.eye(4) - Ki @ Gi) @ P_loop
+            Ki = _gain_at(P_loop, Gi, R)
+            x_op = x_check + Ki @ (beacons.bearings_residual(y, g(x_op)) - Gi @ (x_check - x_op))
+            P_loop = short_update(P_loop, Ki, Gi @ P_loop)
         expect_close(result[1], ref.P_hat, "P_hat", rtol=1e-5, atol=1e-9, mistakes=[
             (at_prior, "the final covariance uses K and G of the last linearisation, not those at x̌"),
             (P_loop, "only the mean iterates: form P̂ = (I − K G) P̌ once, after the loop, from the "

@@ -56,7 +56,7 @@ def _fd_transition(x, f, w, T, g, h=1e-6):
     return J
 
 
-@check("eskf_error_dynamics")
+@check
 def check_eskf_error_dynamics(error_dynamics):
     """``error_dynamics(R, f, w, b_a, b_w)`` returns F_t (15, 15)."""
     g = np.array([0.0, 0.0, -9.8092])
@@ -92,7 +92,7 @@ def check_eskf_error_dynamics(error_dynamics):
                               f"{fd_err:.2e} > {tol:.1e})")
 
 
-@check("eskf_noise_jacobian")
+@check
 def check_eskf_noise_jacobian(noise_jacobian):
     """``noise_jacobian(R, bias_model)`` returns B_t (15, 12) or (15, 6)."""
     for x, _, _ in _cases():
@@ -107,7 +107,7 @@ def check_eskf_noise_jacobian(noise_jacobian):
                     "(the constant-bias model has no bias columns)")
 
 
-@check("eskf_discretisation")
+@check
 def check_eskf_discretisation(discretise):
     """``discretise(F_t, B_t, T)`` returns (F, B); checked through the blocks of B Q Bᵀ."""
     for x, f, w in _cases():
@@ -139,7 +139,7 @@ def check_eskf_discretisation(discretise):
             expect_close(B, B_ref, f"B for T = {T}", atol=1e-14)
 
 
-@check("eskf_propagate")
+@check
 def check_eskf_propagate(propagate_covariance):
     """``propagate_covariance(P, F, B, Q)`` returns P̌ (15, 15), symmetric positive definite."""
     rng = np.random.default_rng(2)
@@ -161,7 +161,7 @@ def check_eskf_propagate(propagate_covariance):
         ], hint="P̌ = F P̂ Fᵀ + B Q Bᵀ")
 
 
-@check("eskf_pose_residual")
+@check
 def check_eskf_pose_residual(pose_residual):
     """``pose_residual(p_check, R_check, p_meas, R_meas)`` returns y (6,)."""
     rng = np.random.default_rng(3)
@@ -189,7 +189,7 @@ def _update_case(seed=4):
     return P, eskf.POSE_G.copy(), R
 
 
-@check("eskf_gain")
+@check
 def check_eskf_gain(kalman_gain):
     """``kalman_gain(P, G, R)`` returns K (15, 6)."""
     for seed in (4, 5):
@@ -202,7 +202,7 @@ def check_eskf_gain(kalman_gain):
         ], hint="K = P Gᵀ (G P Gᵀ + R)⁻¹")
 
 
-@check("eskf_covariance_update")
+@check
 def check_eskf_covariance_update(update_covariance):
     """``update_covariance(P, K, G, R)`` returns P̂ (Joseph form, valid for any K)."""
     for seed in (4, 5):
@@ -222,7 +222,7 @@ def check_eskf_covariance_update(update_covariance):
             ], hint="P̂ = (I − K G) P̌ (I − K G)ᵀ + K R Kᵀ")
 
 
-@check("eskf_inject")
+@check
 def check_eskf_inject(inject):
     """``inject(nominal, dx)`` removes the estimated error: returns the corrected NominalState."""
     rng = np.random.default_rng(6)
@@ -253,7 +253,7 @@ def check_eskf_inject(inject):
             (nom.gyro_bias + dx[12:15], "sign of the bias correction: δb = b̌ − b, so b̂ = b̌ − δb")])
 
 
-@check("eskf_reset")
+@check
 def check_eskf_reset(reset_covariance):
     """``reset_covariance(P, dx)`` returns G P Gᵀ with the reset Jacobian of this convention."""
     rng = np.random.default_rng(7)
@@ -277,7 +277,7 @@ def check_eskf_reset(reset_covariance):
         ], hint="P ← G P Gᵀ, G = I except G[6:9, 6:9] = I + ½[δθ̂]×")
 
 
-@check("eskf_run")
+@check
 def check_eskf_run(run_eskf):
     """``run_eskf(ex, t_end, cfg)`` returns (t, positions, rotations, P) at the lidar times."""
     ex = load_kitti(RUN_EXCERPT)
@@ -307,7 +307,7 @@ def check_eskf_run(run_eskf):
 # Bonus: the nominal-state EKF
 # ---------------------------------------------------------------------------------------
 
-@check("nominal_ekf_observation")
+@check
 def check_nominal_ekf_observation(align_quaternion):
     """``align_quaternion(q_check, q_meas)`` returns ±q_meas, whichever is closer to q_check."""
     rng = np.random.default_rng(11)
@@ -322,7 +322,7 @@ def check_nominal_ekf_observation(align_quaternion):
             ], hint="return q_meas if q_meas · q_check ≥ 0, else −q_meas")
 
 
-@check("nominal_ekf_jacobian")
+@check
 def check_nominal_ekf_jacobian(nominal_jacobian):
     """``nominal_jacobian(q, f, w, b_a, b_w)`` returns A = ∂ẋ/∂x (16, 16)."""
     from kalman_course.filters import nominal_ekf

@@ -31,7 +31,7 @@ def _call_conditional(fn, args):
     return result
 
 
-@check("conditional_mean")
+@check
 def check_conditional_mean(gaussian_conditional):
     """The mean of the learner's ``gaussian_conditional(mu_x, mu_y, Sxx, Sxy, Syy, y)``."""
     for args, (mean, _) in _conditional_cases():
@@ -46,7 +46,7 @@ def check_conditional_mean(gaussian_conditional):
         ], hint="μ_x|y = μ_x + Σ_xy Σ_yy⁻¹ (y − μ_y)")
 
 
-@check("conditional_covariance")
+@check
 def check_conditional_covariance(gaussian_conditional):
     """The covariance of the learner's ``gaussian_conditional``: the Schur complement of Σ_yy."""
     for args, (_, cov) in _conditional_cases():
@@ -61,7 +61,7 @@ def check_conditional_covariance(gaussian_conditional):
         expect_symmetric(got, "conditional covariance")
 
 
-@check("linear_map_moments")
+@check
 def check_linear_map_moments(linear_map_moments):
     """The learner's ``linear_map_moments(mu_x, Sigma_xx, G, R)`` returns (mu_y, Sigma_yy, Sigma_xy)."""
     rng = np.random.default_rng(21)

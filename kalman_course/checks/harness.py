@@ -1,7 +1,9 @@
 """What every check shares: running learner code quietly, comparing, failing with a hint.
 
-A check is a function decorated with :func:`check`. It receives the learner's objects
-(usually functions), runs them through :func:`call` next to the reference
+A check is a function ``check_<name>`` decorated with :func:`check`, which registers it
+under ``<name>`` (the name is written once, in the ``def`` line); ``kalman_course.checks``
+exposes every registered check as ``checks.<name>``. A check receives the learner's
+objects (usually functions), runs them through :func:`call` next to the reference
 implementation, and compares with :func:`expect_close` and friends. On success it prints
 one constant line, ``<name>: passed``; on failure it raises :class:`CheckFailed`, whose
 message says what is wrong and, where the mistake is a known one, why.
@@ -25,22 +27,68 @@ class CheckFailed(AssertionError):
     """A learner's code gave a wrong answer. The message names the problem and a hint."""
 
 
-def check(name: str) -> Callable:
-    """Decorate a check function: constant success line, ``CheckFailed`` messages prefixed by ``name``."""
+#: Prefix of every check function's name; the rest of the name is the check's name.
+CHECK_PREFIX = "check_"
 
-    def decorate(fn: Callable) -> Callable:
-        @functools.wraps(fn)
-        def run(*args, **kwargs):
-            try:
-                fn(*args, **kwargs)
-            except CheckFailed as exc:
-                raise CheckFailed(f"{name}: {exc}") from None
-            print(SUCCESS.format(name=name))
+# name -> the wrapped check, in registration order (the order of the chapters' imports)
+_REGISTRY: dict[str, Callable] = {}
 
-        run.check_name = name
-        return run
 
-    return decorate
+def check(fn: Callable) -> Callable:
+    """Decorate ``check_<name>`` as the grader check ``<name>`` and register it.
+
+    The wrapped check prints the constant line ``<name>: passed`` on success and prefixes
+    every :class:`CheckFailed` message with ``<name>: ``.
+
+    Parameters
+    ----------
+    fn : callable
+        The check; its ``__name__`` must be ``check_<name>`` with a non-empty ``<name>``.
+
+    Returns
+    -------
+    callable
+        The wrapped check, with attribute ``check_name`` = ``<name>``.
+
+    Raises
+    ------
+    ValueError
+        If ``fn``'s name does not start with ``check_``, or a check is already registered
+        under ``<name>`` (a second module defining the same check, or a module imported
+        twice under two names: either way, ``checks.<name>`` would be ambiguous).
+    """
+    if not callable(fn) or not getattr(fn, "__name__", "").startswith(CHECK_PREFIX) \
+            or fn.__name__ == CHECK_PREFIX:
+        raise ValueError(f"@check decorates a function named {CHECK_PREFIX}<name>, "
+                         f"got {getattr(fn, '__name__', fn)!r}")
+    name = fn.__name__[len(CHECK_PREFIX):]
+
+    @functools.wraps(fn)
+    def run(*args, **kwargs):
+        try:
+            fn(*args, **kwargs)
+        except CheckFailed as exc:
+            raise CheckFailed(f"{name}: {exc}") from None
+        print(SUCCESS.format(name=name))
+
+    run.check_name = name
+    _register(name, run)
+    return run
+
+
+def _register(name: str, wrapped: Callable) -> None:
+    """Add ``wrapped`` to the registry; a second check of the same name is an error."""
+    previous = _REGISTRY.get(name)
+    if previous is not None:
+        raise ValueError(f"check name {name!r} is registered twice: by "
+                         f"{previous.__module__}.{previous.__qualname__} and "
+                         f"{wrapped.__module__}.{wrapped.__qualname__}")
+    _REGISTRY[name] = wrapped
+
+
+def registered() -> dict[str, Callable]:
+    """Every registered check, ``{name: check}``, in registration order (a copy)."""
+    return dict(_REGISTRY)
 
 
 def call(fn: Callable, *args, label: str | None = None):

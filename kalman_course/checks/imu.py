@@ -60,7 +60,7 @@ def _rotation_result(value, what):
     return R
 
 
-@check("attitude_step")
+@check
 def check_attitude_step(attitude_step):
     """``attitude_step(R, w0, w1, b_w, dt)`` returns the attitude at the next sample."""
     # closed form: a constant rate ω about a fixed axis for T seconds is Exp(ω T)
@@ -84,7 +84,7 @@ def check_attitude_step(attitude_step):
         ], hint="R_next = R Exp((½(ω₀ + ω₁) − b_ω) T)")
 
 
-@check("velocity_step")
+@check
 def check_velocity_step(velocity_step):
     """``velocity_step(v, R0, R1, f0, f1, b_a, g, dt)`` returns the velocity at the next sample."""
     g = np.array([0.0, 0.0, -9.8092])
@@ -113,7 +113,7 @@ def check_velocity_step(velocity_step):
         ], hint="v_next = v + ½(R₀(f₀ − b_a) + R₁(f₁ − b_a)) T + g T")
 
 
-@check("position_step")
+@check
 def check_position_step(position_step):
     """``position_step(p, v0, v1, dt)`` returns the position at the next sample."""
     # closed form: constant acceleration a from v0 gives p + v0 T + ½ a T²
@@ -130,7 +130,7 @@ def check_position_step(position_step):
                      reference_position_step(c["p"], c["v"], v1, c["dt"]), "p_next on KITTI samples", atol=1e-12)
 
 
-@check("mechanisation_run")
+@check
 def check_mechanisation_run(mechanise):
     """``mechanise(imu, state, g, start, stop)`` returns positions (n, 3), velocities, rotations."""
     # synthetic motion whose truth the midpoint rule reproduces exactly

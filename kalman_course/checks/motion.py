@@ -43,7 +43,7 @@ def _straight_line(x, T):
     return np.array([px + v * T * np.cos(psi), py + v * T * np.sin(psi), v, psi + om * T, om])
 
 
-@check("ctrv_step")
+@check
 def check_ctrv_step(ctrv_step):
     """The learner's ``ctrv_step(x, T)`` (noise-free) against the derived model."""
     for x, T in kitti_ctrv_cases():
@@ -70,7 +70,7 @@ def check_ctrv_step(ctrv_step):
                           "ψ += ω T; for |ω| tiny use the straight line")
 
 
-@check("ctrv_jacobian")
+@check
 def check_ctrv_jacobian(ctrv_jacobian):
     """The learner's ``ctrv_jacobian(x, T)`` against SymPy's, turning and at ω = 0."""
     for x, T in kitti_ctrv_cases():

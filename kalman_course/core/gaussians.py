@@ -26,8 +26,8 @@ import math
 
 import numpy as np
 
-from kalman_course.core.linalg import symmetrise
-from kalman_course.core.validation import as_covariance, as_matrix, as_vector
+from kalman_course.core import linalg
+from kalman_course.core.validation import as_covariance, as_matrix, as_real_array, as_vector
 
 __all__ = [
     "gaussian_pdf",
@@ -48,29 +48,13 @@ __all__ = [
 
 def _as_points(x, name: str, n: int) -> np.ndarray:
     """Return ``x`` as a finite array of shape (n,) or (N, n)."""
-    arr = np.asarray(x, dtype=float)
+    arr = as_real_array(x, name)
     if arr.ndim == 1:
         return as_vector(arr, name, n)
     if arr.ndim == 2:
-        return as_matrix(arr, name, (None, n))
+        return as_matrix(arr, name, ("N", n))
     raise ValueError(f"{name} must be one point of shape ({n},) or N points of shape (N, {n}), "
                      f"got shape {arr.shape}")
-
-
-def _as_psd_covariance(value, name: str, n: int | None = None) -> np.ndarray:
-    """Like ``as_covariance`` but also reject a clearly indefinite matrix.
-
-    Singular (positive semi-definite) matrices pass: they are fine wherever a covariance
-    is only added or multiplied, never inverted.
-    """
-    arr = as_covariance(value, name, n)
-    if arr.size:
-        smallest = np.linalg.eigvalsh(arr)[0]
-        scale = max(float(np.max(np.abs(arr))), 1e-300)
-        if smallest < -1e-10 * scale:
-            raise ValueError(f"{name} must be positive semi-definite, "
-                             f"its smallest eigenvalue is {smallest:.3g}")
-    return arr
 
 
 def _as_block_split(M, name: str, k) -> tuple[np.ndarray, int]:
@@ -191,13 +175,17 @@ def marginal(mean, cov, indices):
     Raises
     ------
     ValueError
-        If shapes do not match or ``indices`` is empty, repeats an index, is not made of
-        integers, or is out of range.
+        If shapes do not match, ``cov`` is not a symmetric positive semi-definite
+        covariance, or ``indices`` is empty, repeats an index, is not made of integers, or
+        is out of range.
     """
     mean = as_vector(mean, "mean")
     n = mean.shape[0]
-    cov = as_covariance(cov, "cov", n)
-    idx = np.asarray(indices)
+    cov = as_covariance(cov, "cov", n, psd=True)
+    try:
+        idx = np.asarray(indices)
+    except (TypeError, ValueError):          # a ragged list
+        raise ValueError(f"indices must be a non-empty 1-D sequence of integers, got {indices!r}") from None
     if idx.ndim == 0:
         idx = idx.reshape(1)
     if idx.ndim != 1 or idx.size == 0:
@@ -231,7 +219,10 @@ def conditional(mu_x, mu_y, Sigma_xx, Sigma_xy, Sigma_yy, y):
         \\Sigma_{x|y} = \\Sigma_{xx} - \\Sigma_{xy}\\Sigma_{yy}^{-1}\\Sigma_{xy}^T,
 
     the covariance being the Schur complement of :math:`\\Sigma_{yy}` in the joint
-    covariance. Both use a linear solve with :math:`\\Sigma_{yy}`, never its inverse.
+    covariance. This is the Kalman update with gain :math:`K = \\Sigma_{xy}\\Sigma_{yy}^{-1}`,
+    computed by :func:`kalman_course.core.linalg.gain` (a linear solve with
+    :math:`\\Sigma_{yy}`, or its closed form for one or two components; never a general
+    inverse).
 
     Parameters
     ----------
@@ -258,24 +249,24 @@ def conditional(mu_x, mu_y, Sigma_xx, Sigma_xy, Sigma_yy, y):
     Raises
     ------
     ValueError
-        If a shape does not match, ``Sigma_xx`` or ``Sigma_yy`` is not a symmetric
-        covariance, ``Sigma_yy`` is not positive definite, or the three blocks do not form
+        If a shape does not match, ``Sigma_xx`` is not a symmetric positive
+        semi-definite covariance, ``Sigma_yy`` is not symmetric positive definite, or the three blocks do not form
         a valid (positive semi-definite) joint covariance.
     """
     mu_x = as_vector(mu_x, "mu_x")
     mu_y = as_vector(mu_y, "mu_y")
     n, m = mu_x.shape[0], mu_y.shape[0]
-    Sigma_xx = as_covariance(Sigma_xx, "Sigma_xx", n)
+    Sigma_xx = as_covariance(Sigma_xx, "Sigma_xx", n, psd=True)
     Sigma_xy = as_matrix(Sigma_xy, "Sigma_xy", (n, m))
     Sigma_yy = as_covariance(Sigma_yy, "Sigma_yy", m, positive_definite=True)
     y = as_vector(y, "y", m)
 
-    # Sigma_yy^{-1} (y - mu_y) and Sigma_yy^{-1} Sigma_xy^T by solves
-    w = np.linalg.solve(Sigma_yy, y - mu_y)                  # (m,)
-    A = np.linalg.solve(Sigma_yy, Sigma_xy.T)                # (m, n)
-
-    mean = mu_x + Sigma_xy @ w
-    cov = symmetrise(Sigma_xx - Sigma_xy @ A)
+    # The Kalman update in other letters: gain K = Sigma_xy Sigma_yy^-1 (the kernel's
+    # "G P" is Sigma_xy^T, its S is Sigma_yy), mean = mu_x + K (y - mu_y),
+    # cov = Sigma_xx - K Sigma_xy^T.
+    K = linalg.gain(Sigma_xy.T, Sigma_yy)                    # (n, m), by a solve or closed form
+    mean = mu_x + K @ (y - mu_y)
+    cov = linalg.short_update(Sigma_xx, K, Sigma_xy.T)
 
     smallest = np.linalg.eigvalsh(cov)[0]
     scale = max(float(np.max(np.abs(Sigma_xx))), 1e-300)
@@ -327,14 +318,15 @@ def linear_map(mu_x, Sigma_xx, G, R):
     """
     mu_x = as_vector(mu_x, "mu_x")
     n = mu_x.shape[0]
-    Sigma_xx = as_covariance(Sigma_xx, "Sigma_xx", n)
+    Sigma_xx = as_covariance(Sigma_xx, "Sigma_xx", n, psd=True)
     G = as_matrix(G, "G", (None, n))
     m = G.shape[0]
-    R = _as_psd_covariance(R, "R", m)
+    R = as_covariance(R, "R", m, psd=True)
 
+    G_Sigma = G @ Sigma_xx                                   # G Sigma_xx, (m, n)
     mu_y = G @ mu_x
-    Sigma_xy = Sigma_xx @ G.T
-    Sigma_yy = symmetrise(G @ Sigma_xy + R)
+    Sigma_xy = G_Sigma.T                                     # Sigma_xx G^T (Sigma_xx symmetric)
+    Sigma_yy = linalg.symmetrise(linalg.innovation_covariance(G_Sigma, G, R))   # G Sigma_xx G^T + R
     return mu_y, Sigma_yy, Sigma_xy
 
 
@@ -371,12 +363,13 @@ def joint_linear(mu_x, Sigma_xx, G, R):
     ValueError
         As for :func:`linear_map`.
     """
-    mu_y, Sigma_yy, Sigma_xy = linear_map(mu_x, Sigma_xx, G, R)
-    Sigma_xx = np.asarray(Sigma_xx, dtype=float)
-    mean = np.concatenate([np.asarray(mu_x, dtype=float), mu_y])
+    mu_y, Sigma_yy, Sigma_xy = linear_map(mu_x, Sigma_xx, G, R)      # validates the inputs
+    mu_x = as_vector(mu_x, "mu_x")
+    Sigma_xx = as_covariance(Sigma_xx, "Sigma_xx", mu_x.shape[0])
+    mean = np.concatenate([mu_x, mu_y])
     cov = np.block([[Sigma_xx, Sigma_xy],
                     [Sigma_xy.T, Sigma_yy]])
-    return mean, symmetrise(cov)
+    return mean, linalg.symmetrise(cov)
 
 
 def product(mu_a, Sigma_a, mu_b, Sigma_b):
@@ -388,7 +381,7 @@ def product(mu_a, Sigma_a, mu_b, Sigma_b):
     :math:`\\mu = \\Sigma(\\Sigma_a^{-1}\\mu_a + \\Sigma_b^{-1}\\mu_b)`.
 
     Computed in the equivalent "gain" form, which needs one solve with
-    :math:`\\Sigma_a + \\Sigma_b` and no inverse:
+    :math:`\\Sigma_a + \\Sigma_b` (the closed form for n <= 2) and no general inverse:
 
     .. math::
 
@@ -426,10 +419,10 @@ def product(mu_a, Sigma_a, mu_b, Sigma_b):
     mu_b = as_vector(mu_b, "mu_b", n)
     Sigma_b = as_covariance(Sigma_b, "Sigma_b", n, positive_definite=True)
 
-    # K = Sigma_a (Sigma_a + Sigma_b)^{-1}; both symmetric, so K^T = (Sigma_a + Sigma_b)^{-1} Sigma_a
-    K = np.linalg.solve(Sigma_a + Sigma_b, Sigma_a).T
+    # the Kalman update with G = I: "G P" is Sigma_a and S = Sigma_a + Sigma_b
+    K = linalg.gain(Sigma_a, Sigma_a + Sigma_b)
     mean = mu_a + K @ (mu_b - mu_a)
-    cov = symmetrise(Sigma_a - K @ Sigma_a)
+    cov = linalg.short_update(Sigma_a, K, Sigma_a)
     return mean, cov
 
 

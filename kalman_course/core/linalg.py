@@ -1,10 +1,11 @@
 """The linear algebra every Kalman-type filter shares, each formula written once.
 
 Unvalidated kernels: callers validate at their public boundary (``core.validation``) and
-then call these inside their loops. Notation of the lecture: prior covariance P̌ (n, n),
-observation Jacobian G (m, n), observation noise in measurement space R (m, m) (already
-C R Cᵀ where an observation-noise Jacobian C is used), innovation covariance S (m, m),
-gain K (n, m).
+then call these inside their loops. Notation of the lecture: posterior covariance P̂
+(n, n), motion Jacobian F (n, n), process noise in state space B Q Bᵀ (n, n), prior
+covariance P̌ (n, n), observation Jacobian G (m, n), observation noise in measurement
+space R (m, m) (already C R Cᵀ where an observation-noise Jacobian C is used),
+innovation covariance S (m, m), gain K (n, m).
 
 ``np.dot`` is used because for these tiny matrices it has the least call overhead of
 numpy's products.
@@ -16,7 +17,8 @@ import numpy as np
 from numpy import dot
 from numpy.linalg import solve
 
-__all__ = ["symmetrise", "innovation_covariance", "gain", "joseph_update", "short_update"]
+__all__ = ["symmetrise", "predict_covariance", "innovation_covariance", "gain", "joseph_form",
+           "joseph_update", "short_update"]
 
 
 def symmetrise(P: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
@@ -29,6 +31,24 @@ def symmetrise(P: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     out = np.add(P, P.T, out=out)
     out *= 0.5
     return out
+
+
+def predict_covariance(P_hat: np.ndarray, F: np.ndarray, BQBt: np.ndarray,
+                       out: np.ndarray | None = None) -> np.ndarray:
+    """P̌ = F P̂ Fᵀ + B Q Bᵀ, symmetrised; returns (n, n).
+
+    Parameters
+    ----------
+    P_hat : numpy.ndarray, shape (n, n)
+        Posterior covariance P̂ of the previous step.
+    F : numpy.ndarray, shape (n, n)
+        Motion Jacobian (the discrete transition matrix).
+    BQBt : numpy.ndarray, shape (n, n)
+        Process noise already mapped into the state space, B Q Bᵀ.
+    out : numpy.ndarray, shape (n, n), optional
+        Receives P̌ (a filter's history row); must not overlap ``P_hat``.
+    """
+    return symmetrise(dot(dot(F, P_hat), F.T) + BQBt, out)
 
 
 def innovation_covariance(GP: np.ndarray, G: np.ndarray, R: np.ndarray) -> np.ndarray:
@@ -56,17 +76,26 @@ def gain(GP: np.ndarray, S: np.ndarray) -> np.ndarray:
     return solve(S, GP).T                    # Kᵀ = S⁻¹ G P̌; reports a singular S
 
 
-def joseph_update(P_check: np.ndarray, K: np.ndarray, G: np.ndarray, R: np.ndarray,
-                  I: np.ndarray | None = None, out: np.ndarray | None = None) -> np.ndarray:
-    """P̂ = (I − K G) P̌ (I − K G)ᵀ + K R Kᵀ, symmetrised.
+def joseph_form(P_check: np.ndarray, K: np.ndarray, G: np.ndarray, R: np.ndarray,
+                I: np.ndarray | None = None) -> np.ndarray:
+    """(I − K G) P̌ (I − K G)ᵀ + K R Kᵀ as computed, not symmetrised.
 
-    Right for any gain K, and positive semi-definite by construction. ``I``, the (n, n)
-    identity, may be passed in by a loop that made it once; ``out`` receives P̂.
+    Right for any gain K, and positive semi-definite in exact arithmetic. Filters call
+    :func:`joseph_update`; this unsymmetrised form exists so that lecture 09 can show the
+    round-off asymmetry the product leaves. ``I``, the (n, n) identity, may be passed in by
+    a loop that made it once.
     """
     if I is None:
         I = np.eye(P_check.shape[0])
     I_KG = I - dot(K, G)
-    return symmetrise(dot(dot(I_KG, P_check), I_KG.T) + dot(dot(K, R), K.T), out)
+    return dot(dot(I_KG, P_check), I_KG.T) + dot(dot(K, R), K.T)
+
+
+def joseph_update(P_check: np.ndarray, K: np.ndarray, G: np.ndarray, R: np.ndarray,
+                  I: np.ndarray | None = None, out: np.ndarray | None = None) -> np.ndarray:
+    """P̂ = (I − K G) P̌ (I − K G)ᵀ + K R Kᵀ, symmetrised (:func:`joseph_form`, then
+    :func:`symmetrise`); ``out`` receives P̂."""
+    return symmetrise(joseph_form(P_check, K, G, R, I), out)
 
 
 def short_update(P_check: np.ndarray, K: np.ndarray, GP: np.ndarray,

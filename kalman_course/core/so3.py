@@ -20,6 +20,8 @@ axes. Only numpy is used.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 __all__ = [
@@ -38,13 +40,136 @@ NEAR_PI = 1e-2
 
 def _stack(value, name: str, tail: tuple[int, ...]) -> np.ndarray:
     """Return ``value`` as a finite float array whose trailing shape is ``tail``."""
-    arr = np.asarray(value, dtype=float)
+    if type(value) is np.ndarray and value.dtype == np.float64:
+        arr = value                       # the fast path of the filters' inner loops
+    else:
+        try:
+            arr = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"{name} must be a numeric array, got {type(value).__name__}") from None
     if arr.ndim < len(tail) or arr.shape[arr.ndim - len(tail):] != tail:
         want = ", ".join(str(n) for n in tail)
         raise ValueError(f"{name} must have shape ({want}) or (..., {want}), got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    # a NaN or inf makes the sum non-finite (cheaper than isfinite().all() on tiny arrays);
+    # a finite sum proves every entry finite, an overflowing one is checked entry by entry
+    if not math.isfinite(np.add.reduce(arr, axis=None)) and not np.isfinite(arr).all():
         raise ValueError(f"{name} must be finite, got NaN or inf")
     return arr
+
+
+# ---------------------------------------------------------------------------------------
+# Kernels. Every map below is a polynomial in K = [φ]× of degree two,
+#     I + a K + b K²,   with K² = φφᵀ − θ² I,
+# whose coefficients a(θ), b(θ) switch to their Taylor series below SMALL_ANGLE. The
+# series are written once (``_series_*``, functions of θ², valid for floats and arrays);
+# each map has a path for one element (Python floats: a filter calls it once per update)
+# and one for a stack (numpy arrays), with the same thresholds and series.
+# ---------------------------------------------------------------------------------------
+
+def _series_sinc(t2):
+    """sin θ / θ for small θ, from θ²."""
+    return 1.0 - t2 / 6.0 + t2 * t2 / 120.0
+
+
+def _series_cosc(t2):
+    """(1 − cos θ) / θ² for small θ, from θ²."""
+    return 0.5 - t2 / 24.0 + t2 * t2 / 720.0
+
+
+def _series_sinc3(t2):
+    """(θ − sin θ) / θ³ for small θ, from θ²."""
+    return 1.0 / 6.0 - t2 / 120.0 + t2 * t2 / 5040.0
+
+
+def _series_inv(t2):
+    """1/θ² − (1 + cos θ) / (2 θ sin θ) (the K² coefficient of J_r⁻¹) for small θ."""
+    return 1.0 / 12.0 + t2 / 720.0 + t2 * t2 / 30240.0
+
+
+def _series_half_sinc(t2):
+    """sin(θ/2) / θ for small θ, from θ² (the vector part of a quaternion per radian)."""
+    return 0.5 - t2 / 48.0 + t2 * t2 / 3840.0
+
+
+def _series_log(t2):
+    """θ / sin θ for small θ, from θ²."""
+    return 1.0 + t2 / 6.0 + 7.0 * t2 * t2 / 360.0
+
+
+def _coefficients(phi: np.ndarray, which: str):
+    """(θ², a, b) of the map ``which`` at φ: floats for φ (3,), arrays (...) for a stack.
+
+    ``which``: "exp" (a = sin θ/θ, b = (1 − cos θ)/θ²), "right_jacobian" (a = −(1 − cos θ)/θ²,
+    b = (θ − sin θ)/θ³), "left_jacobian" (a = +(1 − cos θ)/θ², same b) or "right_jacobian_inv"
+    (a = ½, b = 1/θ² − (1 + cos θ)/(2θ sin θ)).
+    """
+    if phi.ndim == 1:
+        x, y, z = phi.tolist()
+        t2 = x * x + y * y + z * z
+        small = t2 < SMALL_ANGLE * SMALL_ANGLE
+        t = math.sqrt(t2)
+        if which == "exp":
+            a = _series_sinc(t2) if small else math.sin(t) / t
+            b = _series_cosc(t2) if small else (1.0 - math.cos(t)) / t2
+        elif which == "right_jacobian_inv":
+            a = 0.5
+            b = _series_inv(t2) if small else 1.0 / t2 - (1.0 + math.cos(t)) / (2.0 * t * math.sin(t))
+        else:
+            a = _series_cosc(t2) if small else (1.0 - math.cos(t)) / t2
+            a = -a if which == "right_jacobian" else a
+            b = _series_sinc3(t2) if small else (t - math.sin(t)) / (t2 * t)
+        return t2, a, b
+    t2 = np.add.reduce(phi * phi, axis=-1)
+    any_small = bool(t2.size) and np.minimum.reduce(t2, axis=None) < SMALL_ANGLE * SMALL_ANGLE
+    small = t2 < SMALL_ANGLE * SMALL_ANGLE if any_small else None
+    t = np.sqrt(np.where(small, 1.0, t2)) if any_small else np.sqrt(t2)   # no 0/0 where the series is used
+    if which == "exp":
+        a, b = np.sin(t) / t, (1.0 - np.cos(t)) / (t * t)
+        series = (_series_sinc, _series_cosc)
+    elif which == "right_jacobian_inv":
+        a = np.full(t2.shape, 0.5)
+        b = 1.0 / (t * t) - (1.0 + np.cos(t)) / (2.0 * t * np.sin(t))
+        series = (None, _series_inv)
+    else:
+        a, b = (1.0 - np.cos(t)) / (t * t), (t - np.sin(t)) / (t * t * t)
+        series = (_series_cosc, _series_sinc3)
+    if any_small:
+        s2 = t2[small]
+        if series[0] is not None:
+            a[small] = series[0](s2)
+        b[small] = series[1](s2)
+    if which == "right_jacobian":
+        a = -a
+    return t2, a, b
+
+
+def _quadratic_map(phi: np.ndarray, which: str) -> np.ndarray:
+    """I + a K + b K² (K = [φ]×, K² = φφᵀ − θ² I) of the map ``which`` for a validated φ (3,) or (..., 3)."""
+    t2, a, b = _coefficients(phi, which)
+    if phi.ndim == 1:
+        x, y, z = phi.tolist()
+        xx, yy, zz, xy, xz, yz = x * x, y * y, z * z, x * y, x * z, y * z
+        return np.array([[1.0 - b * (yy + zz), b * xy - a * z, b * xz + a * y],
+                         [b * xy + a * z, 1.0 - b * (xx + zz), b * yz - a * x],
+                         [b * xz - a * y, b * yz + a * x, 1.0 - b * (xx + yy)]])
+    K = _hat(phi)
+    out = K @ K
+    out *= b[..., None, None]
+    out += a[..., None, None] * K
+    out += _I3
+    return out
+
+
+#: vec([φ]×) = _HAT_GENERATORS @ φ: [φ]× is linear in φ (row-major 3 × 3 entries).
+_HAT_GENERATORS = np.array([[0, 0, 0], [0, 0, -1], [0, 1, 0],
+                            [0, 0, 1], [0, 0, 0], [-1, 0, 0],
+                            [0, -1, 0], [1, 0, 0], [0, 0, 0]], dtype=float)
+_I3 = np.eye(3)
+
+
+def _hat(phi: np.ndarray) -> np.ndarray:
+    """[φ]× of a validated stack φ (..., 3): one product with the generators (exact)."""
+    return (phi @ _HAT_GENERATORS.T).reshape(*phi.shape[:-1], 3, 3)
 
 
 def hat(phi) -> np.ndarray:
@@ -61,11 +186,10 @@ def hat(phi) -> np.ndarray:
         [φ]× such that ``hat(a) @ b == cross(a, b)``.
     """
     phi = _stack(phi, "phi", (3,))
-    x, y, z = phi[..., 0], phi[..., 1], phi[..., 2]
-    zero = np.zeros_like(x)
-    return np.stack([np.stack([zero, -z, y], -1),
-                     np.stack([z, zero, -x], -1),
-                     np.stack([-y, x, zero], -1)], -2)
+    if phi.ndim == 1:
+        x, y, z = phi.tolist()
+        return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return _hat(phi)
 
 
 def vee(M) -> np.ndarray:
@@ -87,18 +211,11 @@ def vee(M) -> np.ndarray:
                            M[..., 1, 0] - M[..., 0, 1]], -1)
 
 
-def _exp_coefficients(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Return A = sin θ/θ and B = (1 − cos θ)/θ², with Taylor series for small θ."""
-    small = theta < SMALL_ANGLE
-    t = np.where(small, 1.0, theta)
-    t2 = theta * theta
-    A = np.where(small, 1.0 - t2 / 6.0 + t2 * t2 / 120.0, np.sin(t) / t)
-    B = np.where(small, 0.5 - t2 / 24.0 + t2 * t2 / 720.0, (1.0 - np.cos(t)) / (t * t))
-    return A, B
-
-
 def exp(phi) -> np.ndarray:
     """Exponential map so(3) → SO(3) (Rodrigues' formula), written Exp(φ) in the notes.
+
+    ``Exp(φ) = I + sin θ/θ [φ]× + (1 − cos θ)/θ² [φ]×²`` with θ = |φ|; both coefficients
+    use their Taylor series below :data:`SMALL_ANGLE`.
 
     Parameters
     ----------
@@ -110,11 +227,7 @@ def exp(phi) -> np.ndarray:
     numpy.ndarray, shape (..., 3, 3)
         The rotation matrix/matrices Exp(φ).
     """
-    phi = _stack(phi, "phi", (3,))
-    theta = np.linalg.norm(phi, axis=-1)
-    A, B = _exp_coefficients(theta)
-    K = hat(phi)
-    return np.eye(3) + A[..., None, None] * K + B[..., None, None] * (K @ K)
+    return _quadratic_map(_stack(phi, "phi", (3,)), "exp")
 
 
 def log(R) -> np.ndarray:
@@ -135,15 +248,28 @@ def log(R) -> np.ndarray:
         Rotation vector(s) φ in radians with |φ| ∈ [0, π].
     """
     R = _stack(R, "R", (3, 3))
+    if R.ndim == 2:
+        (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R.tolist()
+        sx, sy, sz = 0.5 * (r21 - r12), 0.5 * (r02 - r20), 0.5 * (r10 - r01)   # sin θ · a
+        sin_t = math.sqrt(sx * sx + sy * sy + sz * sz)
+        theta = math.atan2(sin_t, 0.5 * (r00 + r11 + r22 - 1.0))
+        if theta <= math.pi - NEAR_PI:
+            factor = _series_log(theta * theta) if theta < SMALL_ANGLE else theta / sin_t
+            return np.array([factor * sx, factor * sy, factor * sz])
+        return _log_stack(R[None])[0]
+    return _log_stack(R)
+
+
+def _log_stack(R: np.ndarray) -> np.ndarray:
+    """:func:`log` of a validated stack (..., 3, 3)."""
     s_vec = vee(R)                                  # sin θ · a
     sin_t = np.linalg.norm(s_vec, axis=-1)
     cos_t = 0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0)
     theta = np.arctan2(sin_t, cos_t)                # in [0, π]
 
     small = theta < SMALL_ANGLE
-    t2 = theta * theta
     safe_sin = np.where(small | (sin_t == 0.0), 1.0, sin_t)
-    factor = np.where(small, 1.0 + t2 / 6.0 + 7.0 * t2 * t2 / 360.0, theta / safe_sin)
+    factor = np.where(small, _series_log(theta * theta), theta / safe_sin)
     phi = factor[..., None] * s_vec
 
     near_pi = theta > np.pi - NEAR_PI
@@ -180,15 +306,7 @@ def right_jacobian(phi) -> np.ndarray:
     numpy.ndarray, shape (..., 3, 3)
         ``J_r = I − (1 − cos θ)/θ² [φ]× + (θ − sin θ)/θ³ [φ]×²``.
     """
-    phi = _stack(phi, "phi", (3,))
-    theta = np.linalg.norm(phi, axis=-1)
-    small = theta < SMALL_ANGLE
-    t = np.where(small, 1.0, theta)
-    t2 = theta * theta
-    B = np.where(small, 0.5 - t2 / 24.0 + t2 * t2 / 720.0, (1.0 - np.cos(t)) / (t * t))
-    C = np.where(small, 1.0 / 6.0 - t2 / 120.0 + t2 * t2 / 5040.0, (t - np.sin(t)) / (t * t * t))
-    K = hat(phi)
-    return np.eye(3) - B[..., None, None] * K + C[..., None, None] * (K @ K)
+    return _quadratic_map(_stack(phi, "phi", (3,)), "right_jacobian")
 
 
 def right_jacobian_inv(phi) -> np.ndarray:
@@ -210,22 +328,19 @@ def right_jacobian_inv(phi) -> np.ndarray:
     if np.any(theta >= np.pi):
         raise ValueError("phi must have norm < π for right_jacobian_inv (the Jacobian is singular at 2π "
                          f"and the inverse is not unique from π), got max |phi| = {theta.max():.6g}")
-    small = theta < SMALL_ANGLE
-    t = np.where(small, 1.0, theta)
-    t2 = theta * theta
-    D = np.where(small, 1.0 / 12.0 + t2 / 720.0 + t2 * t2 / 30240.0,
-                 1.0 / (t * t) - (1.0 + np.cos(t)) / (2.0 * t * np.sin(t)))
-    K = hat(phi)
-    return np.eye(3) + 0.5 * K + D[..., None, None] * (K @ K)
+    return _quadratic_map(phi, "right_jacobian_inv")
 
 
 def left_jacobian(phi) -> np.ndarray:
-    """Left Jacobian of SO(3): ``Exp(φ + δ) ≈ Exp(J_l(φ) δ) Exp(φ)``; equals J_r(−φ)."""
-    return right_jacobian(-_stack(phi, "phi", (3,)))
+    """Left Jacobian of SO(3): ``Exp(φ + δ) ≈ Exp(J_l(φ) δ) Exp(φ)``; equals J_r(−φ).
+
+    ``J_l = I + (1 − cos θ)/θ² [φ]× + (θ − sin θ)/θ³ [φ]×²``, shape (..., 3, 3) for φ (..., 3).
+    """
+    return _quadratic_map(_stack(phi, "phi", (3,)), "left_jacobian")
 
 
 def left_jacobian_inv(phi) -> np.ndarray:
-    """Inverse of :func:`left_jacobian`; equals J_r⁻¹(−φ)."""
+    """Inverse of :func:`left_jacobian`; equals J_r⁻¹(−φ), shape (..., 3, 3) for φ (..., 3)."""
     return right_jacobian_inv(-_stack(phi, "phi", (3,)))
 
 
@@ -255,6 +370,9 @@ def orthonormalise(R) -> np.ndarray:
 def is_rotation(R, tol: float = 1e-9) -> bool:
     """True if every matrix in ``R`` (..., 3, 3) has |RᵀR − I| ≤ tol and det(R) > 0."""
     R = _stack(R, "R", (3, 3))
+    if isinstance(tol, (bool, np.bool_)) or not isinstance(tol, (int, float, np.floating, np.integer)) \
+            or not math.isfinite(tol) or tol < 0:
+        raise ValueError(f"tol must be a finite non-negative number, got {tol!r}")
     err = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max(initial=0.0)
     return bool(err <= tol and np.all(np.linalg.det(R) > 0))
 
@@ -283,7 +401,12 @@ def interpolate(R0, R1, alpha) -> np.ndarray:
     """
     R0 = _stack(R0, "R0", (3, 3))
     R1 = _stack(R1, "R1", (3, 3))
-    alpha = np.asarray(alpha, dtype=float)
+    try:
+        alpha = np.asarray(alpha, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"alpha must be a number or an array of numbers, got {alpha!r}") from None
+    if not np.isfinite(alpha).all():
+        raise ValueError("alpha must be finite, got NaN or inf")
     delta = log(np.swapaxes(R0, -1, -2) @ R1)
     return R0 @ exp(alpha[..., None] * delta)
 
@@ -307,15 +430,26 @@ def quat_conjugate(q) -> np.ndarray:
     return q * np.array([1.0, -1.0, -1.0, -1.0])
 
 
+def _hamilton(pw, px, py, pz, qw, qx, qy, qz) -> list:
+    """Components (w, x, y, z) of p ⊗ q from the components of p and q (floats or arrays)."""
+    return [pw * qw - px * qx - py * qy - pz * qz, pw * qx + px * qw + py * qz - pz * qy,
+            pw * qy - px * qz + py * qw + pz * qx, pw * qz + px * qy - py * qx + pz * qw]
+
+
 def quat_multiply(p, q) -> np.ndarray:
     """Hamilton product p ⊗ q of quaternions (..., 4); ``quat_to_matrix(p ⊗ q) = R(p) R(q)``."""
     p = _stack(p, "p", (4,))
     q = _stack(q, "q", (4,))
-    pw, pv = p[..., :1], p[..., 1:]
-    qw, qv = q[..., :1], q[..., 1:]
-    w = pw * qw - np.sum(pv * qv, axis=-1, keepdims=True)
-    v = pw * qv + qw * pv + np.cross(pv, qv)
-    return np.concatenate([w, v], axis=-1)
+    if p.ndim == 1 and q.ndim == 1:
+        return np.array(_hamilton(*p.tolist(), *q.tolist()))
+    return np.stack(_hamilton(*np.moveaxis(p, -1, 0), *np.moveaxis(q, -1, 0)), axis=-1)
+
+
+def _quat_matrix(w, x, y, z) -> list:
+    """Entries (nested 3 × 3 list) of the rotation matrix of a unit quaternion (floats or arrays)."""
+    return [[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]]
 
 
 def quat_to_matrix(q) -> np.ndarray:
@@ -323,12 +457,15 @@ def quat_to_matrix(q) -> np.ndarray:
 
     The quaternion is normalised first, so any non-zero scaling gives the same rotation.
     """
-    w, x, y, z = np.moveaxis(quat_normalise(q), -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
+    q = _stack(q, "q", (4,))
+    if q.ndim == 1:
+        w, x, y, z = q.tolist()
+        n = math.sqrt(w * w + x * x + y * y + z * z)
+        if n == 0.0:
+            raise ValueError("q must be non-zero to be normalised, got a quaternion of norm 0")
+        return np.array(_quat_matrix(w / n, x / n, y / n, z / n))
+    entries = _quat_matrix(*np.moveaxis(quat_normalise(q), -1, 0))
+    return np.stack([np.stack(row, -1) for row in entries], -2)
 
 
 def matrix_to_quat(R) -> np.ndarray:
@@ -361,9 +498,14 @@ def matrix_to_quat(R) -> np.ndarray:
 def quat_exp(phi) -> np.ndarray:
     """Unit quaternion of the rotation vector(s) φ (..., 3) in radians: (cos θ/2, sin(θ/2) φ/θ)."""
     phi = _stack(phi, "phi", (3,))
+    if phi.ndim == 1:
+        x, y, z = phi.tolist()
+        t2 = x * x + y * y + z * z
+        theta = math.sqrt(t2)
+        k = _series_half_sinc(t2) if theta < SMALL_ANGLE else math.sin(0.5 * theta) / theta
+        return np.array([math.cos(0.5 * theta), k * x, k * y, k * z])
     theta = np.linalg.norm(phi, axis=-1)
     small = theta < SMALL_ANGLE
     t = np.where(small, 1.0, theta)
-    t2 = theta * theta
-    half_sinc = np.where(small, 0.5 - t2 / 48.0 + t2 * t2 / 3840.0, np.sin(0.5 * t) / t)
+    half_sinc = np.where(small, _series_half_sinc(theta * theta), np.sin(0.5 * t) / t)
     return np.concatenate([np.cos(0.5 * theta)[..., None], half_sinc[..., None] * phi], axis=-1)

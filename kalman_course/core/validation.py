@@ -6,10 +6,19 @@ and what was expected, for example ``ValueError: P_hat must be symmetric (max |P
 
 The filters' public steps sit in learners' loops, so the array helpers have a fast path:
 a float64 ndarray of the right shape that passes the strict form of the rules (finite,
-exactly symmetric, non-negative diagonal, a Cholesky factor where positive definiteness
-is asked for) is returned as it is after a few cheap numpy calls. Anything else takes the
-full path, which converts, applies the rules with their tolerances and raises the
-ValueError naming the argument.
+exactly symmetric, non-negative diagonal, a Cholesky factor where positive
+(semi-)definiteness is asked for) is returned as it is after a few cheap numpy calls.
+Anything else takes the full path, which converts, applies the rules with their
+tolerances and raises the ValueError naming the argument. Either way the caller's array
+may come back itself (not a copy): callers never write into a validated argument.
+
+The rules for a covariance (:func:`as_covariance`): square, finite, symmetric to a
+relative tolerance :data:`SYMMETRY_RTOL`, non-negative variances on the diagonal; with
+``psd=True`` also positive semi-definite, meaning that its smallest eigenvalue is not
+below ``-PSD_RTOL`` times its largest (a singular covariance, such as a zero variance for
+a state known exactly, passes; round-off of order 1e-16 relative passes; a clearly
+indefinite matrix such as [[1, 2], [2, 1]], eigenvalues 3 and −1, fails); with
+``positive_definite=True``, a Cholesky factor must exist (use it for anything inverted).
 """
 
 from __future__ import annotations
@@ -19,21 +28,121 @@ import numpy as np
 #: Relative tolerance used to decide that a covariance is symmetric.
 SYMMETRY_RTOL = 1e-9
 
+#: Relative tolerance of the positive semi-definiteness test: the smallest eigenvalue may
+#: be as low as ``-PSD_RTOL`` times the largest. Round-off in a filter's covariance is
+#: of order 1e-16 relative, far inside it.
+PSD_RTOL = 1e-9
+
+
+def _as_float_array(value, name: str, expected: str) -> np.ndarray:
+    """``value`` as a float ndarray, or a ValueError naming ``name`` if it holds no numbers.
+
+    Accepts anything numpy reads as real numbers (lists, ints, float32, object arrays of
+    numbers such as SymPy floats); rejects strings, complex numbers, ``None`` and ragged
+    nested lists with a message saying what ``name`` should be (``expected``).
+    """
+    try:
+        arr = np.asarray(value)
+        if arr.dtype.kind in "iuf":              # int, unsigned, float (not bool: a flag)
+            return arr.astype(float, copy=False)
+        if arr.dtype.kind == "O" and value is not None:
+            return arr.astype(float)
+    except (TypeError, ValueError):          # a ragged list, or an object that is no number
+        pass
+    kind = type(value).__name__ if not isinstance(value, np.ndarray) else f"array of dtype {value.dtype}"
+    raise ValueError(f"{name} must be {expected} of real numbers, got {kind}: {_short_repr(value)}")
+
+
+def _short_repr(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _shape_text(shape: tuple[int | str | None, ...], letters: str = "mn") -> str:
+    """(2, None) -> "(2, n)", ("N", 3) -> "(N, 3)": a free dimension shows its letter."""
+    text = [str(d) if d is not None else letters[i] for i, d in enumerate(shape)]
+    return "(" + ", ".join(text) + ("," if len(shape) == 1 else "") + ")"
+
 
 def as_vector(value, name: str, n: int | None = None) -> np.ndarray:
-    """Return ``value`` as a finite 1-D float array of length ``n`` (any length if None)."""
+    """Return ``value`` as a finite 1-D float array of length ``n``.
+
+    Parameters
+    ----------
+    value : array_like, shape (n,)
+        The candidate vector.
+    name : str
+        Argument name used in error messages.
+    n : int, optional
+        Required length; None accepts any length but 0.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n,)
+        ``value`` itself when it already is a finite float64 vector, else a converted copy.
+
+    Raises
+    ------
+    ValueError
+        If ``value`` holds no real numbers, is not 1-D, has the wrong length, is empty, or
+        holds NaN or inf.
+    """
     if (type(value) is np.ndarray and value.dtype == np.float64 and value.ndim == 1
-            and (n is None or value.shape[0] == n) and np.isfinite(value).all()):
+            and (value.shape[0] == n if n is not None else value.shape[0] > 0)
+            and np.isfinite(value).all()):
         return value
-    arr = np.asarray(value, dtype=float)
+    expected = f"a 1-D vector of shape {_shape_text((n,), 'n')}"
+    arr = _as_float_array(value, name, expected)
     if arr.ndim != 1:
-        raise ValueError(f"{name} must be a 1-D vector of shape ({n if n is not None else 'n'},), "
-                         f"got shape {arr.shape}")
+        hint = ""
+        if arr.ndim == 2 and 1 in arr.shape:
+            hint = f" (a row or column matrix; pass a 1-D array, e.g. {name}.ravel())"
+        raise ValueError(f"{name} must be {expected}, got shape {arr.shape}{hint}")
     if n is not None and arr.shape[0] != n:
         raise ValueError(f"{name} must have shape ({n},), got {arr.shape}")
+    if arr.shape[0] == 0 and n is None:
+        raise ValueError(f"{name} must not be empty, got shape (0,)")
     if not np.isfinite(arr).all():
-        raise ValueError(f"{name} must be finite, got NaN or inf")
+        raise ValueError(f"{name} must be finite, got NaN or inf at index "
+                         f"{int(np.flatnonzero(~np.isfinite(arr))[0])}")
     return arr
+
+
+def as_real_array(value, name: str) -> np.ndarray:
+    """Return ``value`` as a non-empty float array of any shape; NaN and inf are kept.
+
+    For functions that define what NaN means themselves (a missing measurement, an
+    RMSE that propagates it).
+
+    Parameters
+    ----------
+    value : array_like
+        Real numbers, any shape.
+    name : str
+        Argument name used in error messages.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``value`` as float (itself when it already is a float64 ndarray).
+
+    Raises
+    ------
+    ValueError
+        If ``value`` holds no real numbers (a string, complex numbers, ``None``, a ragged
+        list) or is empty.
+    """
+    arr = _as_float_array(value, name, "an array")
+    if arr.size == 0:
+        raise ValueError(f"{name} must not be empty, got shape {arr.shape}")
+    return arr
+
+
+def as_flag(value, name: str) -> bool:
+    """Return ``value`` as a bool; anything else (0 and 1 included) is a ValueError naming it."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be True or False, got {_short_repr(value)}")
+    return bool(value)
 
 
 def as_seed(seed) -> int:
@@ -46,6 +155,8 @@ def as_seed(seed) -> int:
 def as_scalar(value, name: str, *, allow_zero: bool = False) -> float:
     """Return ``value`` as a finite positive float (or non-negative with ``allow_zero``)."""
     kind = "non-negative" if allow_zero else "positive"
+    if isinstance(value, (str, bytes, bool, np.bool_)):   # float("2") and float(True) work
+        raise ValueError(f"{name} must be a finite {kind} number, got {value!r}")
     try:
         v = float(value)
     except (TypeError, ValueError):
@@ -55,26 +166,71 @@ def as_scalar(value, name: str, *, allow_zero: bool = False) -> float:
     return v
 
 
-def as_matrix(value, name: str, shape: tuple[int | None, int | None] = (None, None)) -> np.ndarray:
-    """Return ``value`` as a finite 2-D float array whose shape matches ``shape`` (None = any)."""
+def as_matrix(value, name: str, shape: tuple[int | str | None, int | str | None] = (None, None), *,
+              missing_rows: bool = False) -> np.ndarray:
+    """Return ``value`` as a finite 2-D float array whose shape matches ``shape``.
+
+    Parameters
+    ----------
+    value : array_like, shape (m, n)
+        The candidate matrix.
+    name : str
+        Argument name used in error messages.
+    shape : tuple of (int, str or None, int, str or None)
+        Required (rows, columns). None or a letter (the letter used in error messages,
+        for example ``("N", 3)``) accepts any size but 0.
+    missing_rows : bool
+        If True, a row that is entirely NaN is allowed (a time step without a
+        measurement); every other row must still be finite.
+
+    Returns
+    -------
+    numpy.ndarray, shape (m, n)
+        ``value`` itself when it already is a finite float64 matrix, else a converted copy.
+
+    Raises
+    ------
+    ValueError
+        If ``value`` holds no real numbers, is not 2-D, has the wrong shape (the message
+        says when it is the transpose of the expected one), is empty, or holds NaN or inf
+        (other than whole NaN rows with ``missing_rows``).
+    """
+    expected = _shape_text(shape)
+    rows, cols = (d if isinstance(d, (int, np.integer)) else None for d in shape)
     if (type(value) is np.ndarray and value.dtype == np.float64 and value.ndim == 2
-            and shape[0] in (None, value.shape[0]) and shape[1] in (None, value.shape[1])
+            and (value.shape[0] == rows if rows is not None else value.shape[0] > 0)
+            and (value.shape[1] == cols if cols is not None else value.shape[1] > 0)
             and np.isfinite(value).all()):
         return value
-    arr = np.asarray(value, dtype=float)
-    rows, cols = shape
-    expected = f"({rows if rows is not None else 'm'}, {cols if cols is not None else 'n'})"
+    arr = _as_float_array(value, name, f"a 2-D matrix of shape {expected}")
     if arr.ndim != 2:
         raise ValueError(f"{name} must be a 2-D matrix of shape {expected}, got shape {arr.shape}")
     if (rows is not None and arr.shape[0] != rows) or (cols is not None and arr.shape[1] != cols):
-        raise ValueError(f"{name} must have shape {expected}, got {arr.shape}")
-    if not np.isfinite(arr).all():
-        raise ValueError(f"{name} must be finite, got NaN or inf")
+        transposed = ((rows is None or arr.shape[1] == rows) and (cols is None or arr.shape[0] == cols))
+        hint = f" (the transpose of the expected shape: pass {name}.T?)" if transposed else ""
+        raise ValueError(f"{name} must have shape {expected}, got {arr.shape}{hint}")
+    if (rows is None and arr.shape[0] == 0) or (cols is None and arr.shape[1] == 0):
+        raise ValueError(f"{name} must not be empty, got shape {arr.shape}")
+    finite = np.isfinite(arr)
+    if not finite.all():
+        if missing_rows:
+            bad_rows = ~(finite.all(axis=1) | np.isnan(arr).all(axis=1))
+            if not bad_rows.any():
+                return arr
+            row = int(np.flatnonzero(bad_rows)[0])
+            if np.isinf(arr[row]).any():
+                raise ValueError(f"{name} must not contain inf, row {row} is {arr[row]} "
+                                 f"(a missing row is all NaN)")
+            raise ValueError(f"{name} rows must be all finite or all NaN (missing), "
+                             f"row {row} is only partly NaN: {arr[row]}")
+        row, col = np.argwhere(~finite)[0]
+        raise ValueError(f"{name} must be finite, got NaN or inf at [{row}, {col}]")
     return arr
 
 
-def as_covariance(value, name: str, n: int | None = None, *, positive_definite: bool = False) -> np.ndarray:
-    """Return ``value`` as an (n, n) symmetric covariance matrix.
+def as_covariance(value, name: str, n: int | None = None, *, psd: bool = False,
+                  positive_definite: bool = False) -> np.ndarray:
+    """Return ``value`` as an (n, n) covariance matrix: symmetric, finite, variances >= 0.
 
     Parameters
     ----------
@@ -83,37 +239,64 @@ def as_covariance(value, name: str, n: int | None = None, *, positive_definite: 
     name : str
         Argument name used in error messages.
     n : int, optional
-        Required dimension.
+        Required dimension; None accepts any but 0.
+    psd : bool
+        If True, also require positive semi-definiteness: the smallest eigenvalue must
+        not be below ``-PSD_RTOL`` times the largest. Singular covariances pass. Use it
+        for a filter's P and for Q.
     positive_definite : bool
         If True, also require a Cholesky factorisation to exist (use it for R and for
-        anything that is inverted).
+        anything that is inverted). Implies ``psd``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, n)
+        ``value`` itself when it passes the strict fast checks, else a converted copy.
 
     Raises
     ------
     ValueError
-        If the matrix is not square, not of size n, not finite, not symmetric, has a
-        negative diagonal, or (when requested) is not positive definite.
+        If the matrix holds no real numbers, is not square, not of size n, empty, not
+        finite, not symmetric, has a negative diagonal, or (when requested) is not
+        positive semi-definite or not positive definite.
+
+    Notes
+    -----
+    The fast path (a float64 ndarray, exactly symmetric) costs one Cholesky
+    factorisation when ``psd`` or ``positive_definite`` is asked for; only a matrix whose
+    factorisation fails (a singular or an indefinite one) pays for the eigenvalues.
     """
     if (type(value) is np.ndarray and value.dtype == np.float64 and value.ndim == 2
-            and value.shape[0] == value.shape[1] and value.shape[0] > 0
-            and (n is None or value.shape[0] == n) and np.isfinite(value).all()
-            and (value == value.T).all() and value.diagonal().min() >= 0):
-        if not positive_definite:
-            return value
-        try:
-            np.linalg.cholesky(value)
-            return value
-        except np.linalg.LinAlgError:
-            pass
-    arr = np.asarray(value, dtype=float)
+            and value.shape[0] == value.shape[1]
+            and (value.shape[0] == n if n is not None else value.shape[0] > 0)
+            and np.isfinite(value).all() and (value == value.T).all()):
+        if not (psd or positive_definite):
+            if value.diagonal().min() >= 0:
+                return value
+        else:
+            try:
+                # succeeds only for a positive definite matrix (so its diagonal is > 0)
+                np.linalg.cholesky(value)
+                return value
+            except np.linalg.LinAlgError:
+                # singular or indefinite: the eigenvalues decide, without the conversions
+                if (not positive_definite and value.diagonal().min() >= 0
+                        and _is_psd(value)):
+                    return value
+    expected = f"({n}, {n})" if n is not None else "(n, n)"
+    arr = _as_float_array(value, name, f"a square covariance matrix of shape {expected}")
     if arr.ndim != 2 or arr.shape[0] != arr.shape[1]:
-        raise ValueError(f"{name} must be a square covariance matrix, got shape {arr.shape}")
+        raise ValueError(f"{name} must be a square covariance matrix of shape {expected}, "
+                         f"got shape {arr.shape}")
     if n is not None and arr.shape != (n, n):
         raise ValueError(f"{name} must have shape ({n}, {n}), got {arr.shape}")
+    if arr.size == 0:
+        raise ValueError(f"{name} must not be empty, got shape {arr.shape}")
     if not np.isfinite(arr).all():
-        raise ValueError(f"{name} must be finite, got NaN or inf")
-    asym = np.abs(arr - arr.T).max() if arr.size else 0.0
-    scale = max(np.abs(arr).max() if arr.size else 0.0, 1e-300)
+        row, col = np.argwhere(~np.isfinite(arr))[0]
+        raise ValueError(f"{name} must be finite, got NaN or inf at [{row}, {col}]")
+    asym = np.abs(arr - arr.T).max()
+    scale = max(np.abs(arr).max(), 1e-300)
     if asym > SYMMETRY_RTOL * scale:
         raise ValueError(f"{name} must be symmetric, max |{name} - {name}.T| = {asym:.3g}")
     if (arr.diagonal() < 0).any():
@@ -124,18 +307,29 @@ def as_covariance(value, name: str, n: int | None = None, *, positive_definite: 
         except np.linalg.LinAlgError:
             raise ValueError(f"{name} must be positive definite (Cholesky failed; "
                              f"smallest eigenvalue {np.linalg.eigvalsh(arr).min():.3g})") from None
+    elif psd and not _is_psd(0.5 * (arr + arr.T)):
+        eigenvalues = np.linalg.eigvalsh(0.5 * (arr + arr.T))
+        raise ValueError(f"{name} must be positive semi-definite (a covariance): its smallest "
+                         f"eigenvalue is {eigenvalues[0]:.3g}, its largest {eigenvalues[-1]:.3g}")
     return arr
+
+
+def _is_psd(P: np.ndarray) -> bool:
+    """The rule: a symmetric P is positive semi-definite if λ_min >= −PSD_RTOL · λ_max."""
+    eigenvalues = np.linalg.eigvalsh(P)                  # ascending
+    return bool(eigenvalues[0] >= -PSD_RTOL * max(eigenvalues[-1], 0.0))
 
 
 def as_process_noise(Q, B, n: int) -> np.ndarray:
     """Validate Q (and its Jacobian B) and return the state-space noise B Q Bᵀ, (n, n).
 
-    ``B`` None means Q is already (n, n) in state space. Q may be singular.
+    ``B`` None means Q is already (n, n) in state space. Q may be singular but must be
+    positive semi-definite (an indefinite Q would make the prior covariance indefinite).
     """
     if B is None:
-        return as_covariance(Q, "Q", n)
+        return as_covariance(Q, "Q", n, psd=True)
     B = as_matrix(B, "B", (n, None))
-    Q = as_covariance(Q, "Q", B.shape[1])
+    Q = as_covariance(Q, "Q", B.shape[1], psd=True)
     return B @ Q @ B.T
 
 

@@ -6,13 +6,15 @@ Geiger et al., IJRR 2013)::
     from kalman_course.data import load_kitti, EXCERPTS
     ex = load_kitti("turns")        # "cruise", "turns", "stop_go" or "seq00"
     ex.imu.t, ex.imu.specific_force, ex.imu.angular_rate, ex.imu.interpolated
-    ex.gnss.position, ex.gnss.position_noisy
+    ex.gnss.position_noisy           # SIMULATED fixes (σ = 1 m); ex.gnss.position_true: the solution
+    ex.gnss.observations()           # the fixes as a filter takes them (PositionObservations)
     ex.truth.position, ex.truth.velocity, ex.truth.quaternion, ex.truth.rotation
-    ex.lidar.position, ex.lidar.rotation     # SIMULATED: truth + seeded noise
+    ex.lidar.position, ex.lidar.rotation     # SIMULATED: truth + seeded noise (a PoseObservations)
     ex.orb_slam2, ex.sptam                   # real visual-SLAM estimates
 
-Synthetic scenarios (seeded, exact truth): ``random_walk_1d``, ``cv_target``,
-``ctrv_lidar_radar`` and ``imu_trajectory``.
+Synthetic scenarios (seeded, exact truth): ``random_walk_1d``, ``cv_target`` and
+``imu_trajectory``. The chapter 05 lidar + radar scenario, built on the symbolic CTRV and
+radar models, is ``kalman_course.chapters.lidar_radar.ctrv_lidar_radar``.
 
 Rebuild the shipped files with ``python -m kalman_course.data.build``.
 """
@@ -21,14 +23,12 @@ from kalman_course.data.kitti import (EXCERPTS, SCHEMA_VERSION, FrameInfo, GnssD
                                       KittiExcerpt, LidarData, SlamData, TruthData, kitti_dir,
                                       load_excerpt_file, load_kitti, read_manifest, simulate_gnss,
                                       simulate_lidar_poses)
-from kalman_course.data.synthetic import (CTRVScenario, CVTarget, ImuScenario, Measurement,
-                                          RandomWalk1D, ctrv_lidar_radar, ctrv_step, cv_target,
-                                          imu_trajectory, radar_measurement, random_walk_1d)
+from kalman_course.data.synthetic import (CVTarget, ImuScenario, RandomWalk1D, cv_target, imu_trajectory,
+                                          random_walk_1d)
 
 __all__ = [
     "EXCERPTS", "SCHEMA_VERSION", "FrameInfo", "GnssData", "ImuData", "KittiExcerpt", "LidarData",
     "SlamData", "TruthData", "kitti_dir", "load_excerpt_file", "load_kitti", "read_manifest",
     "simulate_gnss", "simulate_lidar_poses",
-    "CTRVScenario", "CVTarget", "ImuScenario", "Measurement", "RandomWalk1D", "ctrv_lidar_radar",
-    "ctrv_step", "cv_target", "imu_trajectory", "radar_measurement", "random_walk_1d",
+    "CVTarget", "ImuScenario", "RandomWalk1D", "cv_target", "imu_trajectory", "random_walk_1d",
 ]

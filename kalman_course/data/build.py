@@ -332,7 +332,7 @@ def excerpt_arrays(seq: dict[str, np.ndarray], name: str) -> dict[str, np.ndarra
     out["lidar/position"] = lidar.position
     out["lidar/quaternion"] = lidar.quaternion
 
-    fixes = SimpleNamespace(t=out["gnss/t"], position=out["gnss/position"])
+    fixes = SimpleNamespace(t=out["gnss/t"], position_true=out["gnss/position"])   # the recorded solution
     out["gnss/position_noisy"] = simulate_gnss(fixes, GNSS_SEEDS[name], GNSS_SIGMA).position_noisy
     meta = {
         "name": name,

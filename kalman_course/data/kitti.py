@@ -14,6 +14,12 @@ Every stream is on one clock and in one frame:
 The lidar map-matching poses are **simulated**: ground truth plus seeded noise
 (``simulate_lidar_poses``); KITTI has no such stream. The noisy GNSS copy is simulated as
 well (``simulate_gnss``). Data: KITTI (Geiger et al., IJRR 2013), CC BY-NC-SA 3.0.
+
+What a filter may see: ``ex.lidar`` is a :class:`~kalman_course.core.observations.PoseObservations`
+(the reported poses, noise included) and ``ex.gnss.observations()`` returns a
+:class:`~kalman_course.core.observations.PositionObservations` of the noisy fixes. The
+recorded GNSS/INS solution is ``ex.gnss.position_true``: as accurate as the ground truth, so
+it is for checking, never a filter input.
 """
 
 from __future__ import annotations
@@ -29,8 +35,9 @@ from pathlib import Path
 import numpy as np
 
 from kalman_course.core import so3
-from kalman_course.core.validation import as_scalar, as_seed
 from kalman_course.core.imu import NavState, NavTrajectory
+from kalman_course.core.observations import PoseObservations, PositionObservations
+from kalman_course.core.validation import as_scalar, as_seed
 
 __all__ = [
     "EXCERPTS", "SCHEMA_VERSION", "ImuData", "GnssData", "TruthData", "LidarData", "SlamData",
@@ -123,16 +130,22 @@ class ImuData:
 class GnssData:
     """GNSS positions at 1 Hz.
 
+    A filter takes :meth:`observations`, the noisy fixes; ``position_true`` is the
+    noise-free recorded solution and is there for checking only. (There is deliberately
+    no ``position`` attribute: code written for an observation record fails loudly on a
+    ``GnssData`` instead of reading the noise-free values.)
+
     Attributes
     ----------
     t : numpy.ndarray, shape (M,)
         Fix times tau, s.
-    position : numpy.ndarray, shape (M, 3)
+    position_true : numpy.ndarray, shape (M, 3)
         The OXTS GNSS/INS position as recorded, navigation frame, m. It is an INS solution,
-        as accurate as the ground truth (millimetres), not raw GNSS.
+        as accurate as the ground truth (millimetres), not raw GNSS: noise-free for the
+        purposes of the course. Stored in the excerpt files as ``gnss/position``.
     position_noisy : numpy.ndarray, shape (M, 3)
-        ``position`` plus simulated white noise N(0, sigma² I): a realistic GNSS
-        observation for exercises, m.
+        ``position_true`` plus simulated white noise N(0, sigma² I): what a GNSS receiver
+        would report, m.
     sigma : float
         Standard deviation of the simulated noise per axis, m.
     seed : int
@@ -142,7 +155,7 @@ class GnssData:
     """
 
     t: np.ndarray
-    position: np.ndarray
+    position_true: np.ndarray
     position_noisy: np.ndarray
     sigma: float
     seed: int
@@ -150,6 +163,17 @@ class GnssData:
 
     def __len__(self) -> int:
         return len(self.t)
+
+    def observations(self) -> PositionObservations:
+        """The fixes as a filter receives them: times and the noisy positions.
+
+        Returns
+        -------
+        PositionObservations
+            ``t`` (M,) s and ``position`` (M, 3) m equal to :attr:`position_noisy`. Use
+            ``.select(mask)`` on it to drop fixes, e.g. for a simulated outage.
+        """
+        return PositionObservations(self.t, self.position_noisy)
 
 
 @dataclass(frozen=True)
@@ -221,13 +245,16 @@ class TruthData:
         return traj.state(0)
 
 
-@dataclass(frozen=True)
-class LidarData:
+@dataclass(frozen=True, eq=False, repr=False)
+class LidarData(PoseObservations):
     """Simulated lidar map-matching pose observations at the ground-truth times (~10 Hz).
 
     Made from the truth as ``p_obs = p + σ_p n_p`` and ``R_obs = R Exp(σ_θ n_θ)`` with
     n_p, n_θ ~ N(0, I₃) drawn in that order from ``default_rng(seed)`` (see
     :func:`simulate_lidar_poses`). KITTI has no such stream.
+
+    It is a :class:`~kalman_course.core.observations.PoseObservations` (validated on
+    construction, read-only arrays), so it goes to a filter as it is.
 
     Attributes
     ----------
@@ -235,10 +262,10 @@ class LidarData:
         Observation times tau, s (equal to the truth's).
     position : numpy.ndarray, shape (K, 3)
         Observed IMU position, navigation frame, m.
-    quaternion : numpy.ndarray, shape (K, 4)
-        Observed attitude R_nb as (w, x, y, z), w ≥ 0.
     rotation : numpy.ndarray, shape (K, 3, 3)
         Observed attitude R_nb.
+    quaternion : numpy.ndarray, shape (K, 4)
+        The same attitude as (w, x, y, z), w ≥ 0.
     sigma_position : float
         σ_p, position noise per axis, m.
     sigma_attitude_deg : float
@@ -249,22 +276,25 @@ class LidarData:
         Always True.
     """
 
-    t: np.ndarray
-    position: np.ndarray
     quaternion: np.ndarray
-    rotation: np.ndarray
     sigma_position: float
     sigma_attitude_deg: float
     seed: int
     simulated: bool = True
 
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        q = np.array(self.quaternion, dtype=np.float64)
+        if q.shape != (len(self), 4) or not np.isfinite(q).all():
+            raise ValueError(f"quaternion must be a finite array of shape ({len(self)}, 4), "
+                             f"got shape {q.shape}")
+        q.setflags(write=False)
+        object.__setattr__(self, "quaternion", q)
+
     @property
     def sigma_attitude(self) -> float:
         """σ_θ in radians."""
         return float(np.deg2rad(self.sigma_attitude_deg))
-
-    def __len__(self) -> int:
-        return len(self.t)
 
 
 @dataclass(frozen=True)
@@ -446,17 +476,18 @@ def simulate_lidar_poses(truth, seed: int, sigma_position: float = 0.2,
     position = p + sp * n_p
     rotation = R @ so3.exp(np.deg2rad(sa) * n_theta)
     quaternion = so3.matrix_to_quat(rotation)
-    return LidarData(t.copy(), position, quaternion, so3.quat_to_matrix(quaternion), sp, sa, seed)
+    return LidarData(t, position, so3.quat_to_matrix(quaternion), quaternion, sp, sa, seed)
 
 
 def simulate_gnss(gnss, seed: int, sigma: float = 1.0) -> GnssData:
-    """Add seeded white noise N(0, σ² I₃) to GNSS positions.
+    """Add seeded white noise N(0, σ² I₃) to noise-free GNSS positions.
 
     Parameters
     ----------
     gnss : object
-        Anything with ``t`` (M,) s and ``position`` (M, 3) m (for example
-        ``load_kitti("turns").gnss``).
+        Anything with ``t`` (M,) s and the noise-free positions (M, 3) m as
+        ``position_true`` (a :class:`GnssData`, for example ``load_kitti("turns").gnss``)
+        or, failing that, as ``position``.
     seed : int
         Seed for ``numpy.random.default_rng``; the noise is one (M, 3) standard normal draw.
     sigma : float
@@ -469,13 +500,14 @@ def simulate_gnss(gnss, seed: int, sigma: float = 1.0) -> GnssData:
     """
     seed = as_seed(seed)
     sigma = as_scalar(sigma, "sigma", allow_zero=True)
-    for attr in ("t", "position"):
+    noise_free = "position_true" if hasattr(gnss, "position_true") else "position"
+    for attr in ("t", noise_free):
         if not hasattr(gnss, attr):
-            raise ValueError(f"gnss must have t (M,) and position (M, 3); missing {attr!r}")
+            raise ValueError(f"gnss must have t (M,) and {noise_free} (M, 3); missing {attr!r}")
     t = np.asarray(gnss.t, dtype=float)
-    p = np.asarray(gnss.position, dtype=float)
+    p = np.asarray(getattr(gnss, noise_free), dtype=float)
     if t.ndim != 1 or p.shape != (len(t), 3):
-        raise ValueError(f"gnss fields must have shapes t (M,), position (M, 3); got {t.shape}, {p.shape}")
+        raise ValueError(f"gnss fields must have shapes t (M,), {noise_free} (M, 3); got {t.shape}, {p.shape}")
     rng = np.random.default_rng(seed)
     noisy = p + sigma * rng.standard_normal(p.shape)
     return GnssData(t.copy(), p.copy(), noisy, sigma, seed)
@@ -636,11 +668,11 @@ def load_excerpt_file(path, manifest=None) -> KittiExcerpt:
         return _frozen(so3.quat_to_matrix(a[key]))
 
     imu = ImuData(a["imu/t"], a["imu/specific_force"], a["imu/angular_rate"], a["imu/interpolated"])
-    gnss = GnssData(a["gnss/t"], a["gnss/position"], a["gnss/position_noisy"],
-                    float(meta["gnss"]["sigma"]), int(meta["gnss"]["seed"]))
+    gnss = GnssData(a["gnss/t"], position_true=a["gnss/position"], position_noisy=a["gnss/position_noisy"],
+                    sigma=float(meta["gnss"]["sigma"]), seed=int(meta["gnss"]["seed"]))
     truth = TruthData(a["truth/t"], a["truth/position"], a["truth/velocity"], a["truth/quaternion"],
                       rotations("truth/quaternion"))
-    lidar = LidarData(a["truth/t"], a["lidar/position"], a["lidar/quaternion"], rotations("lidar/quaternion"),
+    lidar = LidarData(a["truth/t"], a["lidar/position"], rotations("lidar/quaternion"), a["lidar/quaternion"],
                       float(meta["lidar"]["sigma_position"]), float(meta["lidar"]["sigma_attitude_deg"]),
                       int(meta["lidar"]["seed"]))
     orb = SlamData("ORB-SLAM2", a["truth/t"], a["orb_slam2/position"], a["orb_slam2/quaternion"],

@@ -6,28 +6,25 @@ determined by its arguments.
 
 - :func:`random_walk_1d`: a scalar random walk observed with noise (chapter 03);
 - :func:`cv_target`: a constant-velocity target in 1–3 dimensions observed in position;
-- :func:`ctrv_lidar_radar`: a CTRV target observed alternately by lidar (x, y) and radar
-  (range, bearing, range rate), as in the EKF fusion exercise (chapter 05);
 - :func:`imu_trajectory`: a vehicle-like 3-D trajectory with the IMU readings that
   reproduce it exactly under the course's midpoint mechanisation (chapters 07–09).
+
+The chapter 05 lidar + radar scenario is built on the CTRV model and radar h(x) of
+:mod:`kalman_course.symbolic`, a layer the data layer may not import, so it lives in
+:mod:`kalman_course.chapters.lidar_radar` (``ctrv_lidar_radar``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterator
-
 import numpy as np
 
 from kalman_course.core import so3
 from kalman_course.data.kitti import ImuData
 from kalman_course.core.imu import NavState, dead_reckon
-from kalman_course.core.validation import as_covariance, as_scalar, as_seed, as_vector
+from kalman_course.core.validation import as_scalar, as_seed, as_vector
 
-__all__ = [
-    "RandomWalk1D", "random_walk_1d", "CVTarget", "cv_target", "Measurement", "CTRVScenario",
-    "ctrv_lidar_radar", "ctrv_step", "radar_measurement", "ImuScenario", "imu_trajectory",
-]
+__all__ = ["RandomWalk1D", "random_walk_1d", "CVTarget", "cv_target", "ImuScenario", "imu_trajectory"]
 
 
 def _count(value, name: str) -> int:
@@ -207,221 +204,6 @@ def cv_target(n_steps: int, dt: float, sigma_a: float, sigma_meas: float, seed: 
     z = x @ H.T + meas_noise
     t = dt * np.arange(1, n + 1)
     return CVTarget(t, x, z, x0.copy(), F, G, Q, H, R, dt, sigma_a, sigma_meas, int(seed))
-
-
-# ---------------------------------------------------------------------------------------
-# CTRV target, lidar and radar
-# ---------------------------------------------------------------------------------------
-
-#: Lidar noise of the seed article: σ = 0.15 m on x and y.
-R_LIDAR_DEFAULT = ((0.0225, 0.0), (0.0, 0.0225))
-#: Radar noise of the seed article: σ = 0.3 m (range), 0.03 rad (bearing), 0.3 m/s (range rate).
-R_RADAR_DEFAULT = ((0.09, 0.0, 0.0), (0.0, 0.0009, 0.0), (0.0, 0.0, 0.09))
-
-
-def ctrv_step(x, dt: float, nu_a: float = 0.0, nu_yaw_acc: float = 0.0) -> np.ndarray:
-    """One step of the CTRV model with its process noise held constant over the step.
-
-    Parameters
-    ----------
-    x : array_like, shape (5,)
-        State [p_x (m), p_y (m), v (m/s), ψ (rad), ψ̇ (rad/s)].
-    dt : float
-        Step, s.
-    nu_a, nu_yaw_acc : float
-        Longitudinal acceleration (m/s²) and yaw acceleration (rad/s²) noise over the step.
-
-    Returns
-    -------
-    numpy.ndarray, shape (5,)
-        The next state. For |ψ̇| < 1e-6 rad/s the straight-line limit is used.
-    """
-    px, py, v, yaw, yaw_rate = as_vector(x, "x", 5)
-    if abs(yaw_rate) > 1e-6:
-        px1 = px + v / yaw_rate * (np.sin(yaw + yaw_rate * dt) - np.sin(yaw))
-        py1 = py + v / yaw_rate * (np.cos(yaw) - np.cos(yaw + yaw_rate * dt))
-    else:
-        px1 = px + v * np.cos(yaw) * dt
-        py1 = py + v * np.sin(yaw) * dt
-    h = 0.5 * dt * dt
-    return np.array([px1 + h * np.cos(yaw) * nu_a,
-                     py1 + h * np.sin(yaw) * nu_a,
-                     v + dt * nu_a,
-                     yaw + yaw_rate * dt + h * nu_yaw_acc,
-                     yaw_rate + dt * nu_yaw_acc])
-
-
-def radar_measurement(x) -> np.ndarray:
-    """Noise-free radar measurement [ρ (m), φ (rad, in (−π, π]), ρ̇ (m/s)] of a CTRV state (5,)."""
-    px, py, v, yaw, _ = as_vector(x, "x", 5)
-    rho = np.hypot(px, py)
-    if rho < 1e-9:
-        raise ValueError("x must not be at the radar's position (range 0 has no bearing)")
-    return np.array([rho, np.arctan2(py, px), (px * v * np.cos(yaw) + py * v * np.sin(yaw)) / rho])
-
-
-def _wrap(angle):
-    return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi
-
-
-@dataclass(frozen=True)
-class Measurement:
-    """One sensor reading.
-
-    Attributes
-    ----------
-    t : float
-        Time, s.
-    sensor : str
-        "lidar" (z = [p_x, p_y] in m) or "radar" (z = [ρ m, φ rad, ρ̇ m/s]).
-    z : numpy.ndarray, shape (2,) or (3,)
-    R : numpy.ndarray, shape (2, 2) or (3, 3)
-        The sensor's noise covariance.
-    index : int
-        Index of the matching true state in the scenario's ``t`` and ``x``.
-    """
-
-    t: float
-    sensor: str
-    z: np.ndarray
-    R: np.ndarray
-    index: int
-
-
-@dataclass(frozen=True)
-class CTRVScenario:
-    """A CTRV target seen alternately by a lidar and a radar at the origin.
-
-    Attributes
-    ----------
-    t : numpy.ndarray, shape (n,)
-        Measurement times, s (one sensor at each, alternating, starting with lidar).
-    x : numpy.ndarray, shape (n, 5)
-        True state at each time: [p_x (m), p_y (m), v (m/s), ψ (rad, unwrapped), ψ̇ (rad/s)].
-    sensor : numpy.ndarray of str, shape (n,)
-        "lidar" or "radar" for each time.
-    x0 : numpy.ndarray, shape (5,)
-        True state at t = 0 (the first measurement is at t = dt).
-    lidar_index, radar_index : numpy.ndarray of int, shapes (L,), (M,)
-        Indices into ``t`` / ``x`` of the lidar and of the radar measurements.
-    lidar_z : numpy.ndarray, shape (L, 2)
-        Lidar measurements [p_x, p_y], m.
-    radar_z : numpy.ndarray, shape (M, 3)
-        Radar measurements [ρ (m), φ (rad, wrapped to (−π, π]), ρ̇ (m/s)].
-    R_lidar : numpy.ndarray, shape (2, 2)
-    R_radar : numpy.ndarray, shape (3, 3)
-    dt : float
-        Interval between consecutive measurements, s.
-    sigma_a : float
-        Longitudinal acceleration noise σ_a, m/s².
-    sigma_yaw_acc : float
-        Yaw acceleration noise σ_ψ̈, rad/s².
-    seed : int
-    """
-
-    t: np.ndarray
-    x: np.ndarray
-    sensor: np.ndarray
-    x0: np.ndarray
-    lidar_index: np.ndarray
-    lidar_z: np.ndarray
-    radar_index: np.ndarray
-    radar_z: np.ndarray
-    R_lidar: np.ndarray
-    R_radar: np.ndarray
-    dt: float
-    sigma_a: float
-    sigma_yaw_acc: float
-    seed: int
-
-    @property
-    def lidar_t(self) -> np.ndarray:
-        """Lidar measurement times, s, shape (L,)."""
-        return self.t[self.lidar_index]
-
-    @property
-    def radar_t(self) -> np.ndarray:
-        """Radar measurement times, s, shape (M,)."""
-        return self.t[self.radar_index]
-
-    def measurements(self) -> Iterator[Measurement]:
-        """Yield every measurement in time order."""
-        lidar_row = {int(k): i for i, k in enumerate(self.lidar_index)}
-        radar_row = {int(k): i for i, k in enumerate(self.radar_index)}
-        for k in range(len(self.t)):
-            if k in lidar_row:
-                yield Measurement(float(self.t[k]), "lidar", self.lidar_z[lidar_row[k]], self.R_lidar, k)
-            else:
-                yield Measurement(float(self.t[k]), "radar", self.radar_z[radar_row[k]], self.R_radar, k)
-
-    def __len__(self) -> int:
-        return len(self.t)
-
-
-def ctrv_lidar_radar(seed: int, duration: float = 25.0, dt: float = 0.05, sigma_a: float = 3.0,
-                     sigma_yaw_acc: float = 0.3, R_lidar=R_LIDAR_DEFAULT, R_radar=R_RADAR_DEFAULT,
-                     x0=(5.0, 2.0, 5.0, 0.5, 0.1)) -> CTRVScenario:
-    """Simulate a CTRV target observed by interleaved lidar and radar measurements.
-
-    The truth follows :func:`ctrv_step` from ``x0`` with noise ν_a ~ N(0, σ_a²) and
-    ν_ψ̈ ~ N(0, σ_ψ̈²) drawn for every step. A measurement is taken every ``dt`` seconds,
-    alternately lidar (first, at t = dt) and radar. Lidar: z = [p_x, p_y] + N(0, R_lidar);
-    radar: z = [ρ, φ, ρ̇] + N(0, R_radar), with φ wrapped to (−π, π]. The noise values
-    are those of the seed article: R_lidar = diag(0.0225, 0.0225),
-    R_radar = diag(0.09, 0.0009, 0.09), σ_a = 3 m/s².
-
-    Parameters
-    ----------
-    seed : int
-        Seed; draws ν_a (n,), ν_ψ̈ (n,), then the lidar noise (L, 2), then the radar noise
-        (M, 3), all standard normal (the measurement noise through a Cholesky factor of R).
-    duration : float
-        Length of the scenario, s; n = round(duration/dt) measurements.
-    dt : float
-        Interval between consecutive measurements (of either sensor), s.
-    sigma_a : float
-        Longitudinal acceleration noise, m/s².
-    sigma_yaw_acc : float
-        Yaw acceleration noise, rad/s².
-    R_lidar : array_like, shape (2, 2)
-    R_radar : array_like, shape (3, 3)
-    x0 : array_like, shape (5,)
-        Initial state [p_x, p_y, v, ψ, ψ̇].
-
-    Returns
-    -------
-    CTRVScenario
-    """
-    seed = as_seed(seed)
-    duration = as_scalar(duration, "duration")
-    dt = as_scalar(dt, "dt")
-    sigma_a = as_scalar(sigma_a, "sigma_a", allow_zero=True)
-    sigma_yaw_acc = as_scalar(sigma_yaw_acc, "sigma_yaw_acc", allow_zero=True)
-    R_l = as_covariance(R_lidar, "R_lidar", 2, positive_definite=True)
-    R_r = as_covariance(R_radar, "R_radar", 3, positive_definite=True)
-    x0 = as_vector(x0, "x0", 5)
-    n = int(round(duration / dt))
-    if n < 2:
-        raise ValueError(f"duration must cover at least two measurements of dt = {dt} s, got {duration}")
-    rng = np.random.default_rng(seed)
-    nu_a = sigma_a * rng.standard_normal(n)
-    nu_yaw = sigma_yaw_acc * rng.standard_normal(n)
-    x = np.empty((n, 5))
-    state = x0.copy()
-    for k in range(n):
-        state = ctrv_step(state, dt, nu_a[k], nu_yaw[k])
-        x[k] = state
-    t = dt * np.arange(1, n + 1)
-    lidar_index = np.arange(0, n, 2)
-    radar_index = np.arange(1, n, 2)
-    lidar_noise = rng.standard_normal((len(lidar_index), 2)) @ np.linalg.cholesky(R_l).T
-    radar_noise = rng.standard_normal((len(radar_index), 3)) @ np.linalg.cholesky(R_r).T
-    lidar_z = x[lidar_index, :2] + lidar_noise
-    radar_z = np.array([radar_measurement(x[k]) for k in radar_index]) + radar_noise
-    radar_z[:, 1] = _wrap(radar_z[:, 1])
-    sensor = np.where(np.arange(n) % 2 == 0, "lidar", "radar")
-    return CTRVScenario(t, x, sensor, x0.copy(), lidar_index, lidar_z, radar_index, radar_z,
-                        R_l, R_r, dt, sigma_a, sigma_yaw_acc, seed)
 
 
 # ---------------------------------------------------------------------------------------

@@ -20,10 +20,12 @@ import math
 
 import numpy as np
 
-from kalman_course.core.validation import SYMMETRY_RTOL, as_covariance, as_vector
+from kalman_course.core.validation import (SYMMETRY_RTOL, as_covariance, as_real_array, as_scalar,
+                                           as_vector)
 
 __all__ = [
     "rmse",
+    "position_rmse",
     "nees",
     "nis",
     "chi2_cdf",
@@ -62,24 +64,59 @@ def rmse(estimate, truth, axis=0):
     Raises
     ------
     ValueError
-        If ``estimate`` and ``truth`` differ in shape (nothing is broadcast, so a
-        transposed array cannot slip through).
+        If ``estimate`` or ``truth`` holds no real numbers or is empty, the two differ in
+        shape (nothing is broadcast, so a transposed array cannot slip through), or
+        ``axis`` is not an axis of them.
 
     Notes
     -----
     NaN is not skipped: a NaN in either input makes the RMSE of its component NaN. Drop
     the rows you want excluded before calling.
     """
-    estimate = np.asarray(estimate, dtype=float)
-    truth = np.asarray(truth, dtype=float)
+    estimate = as_real_array(estimate, "estimate")
+    truth = as_real_array(truth, "truth")
     if estimate.shape != truth.shape:
         raise ValueError(f"estimate and truth must have the same shape, "
                          f"got estimate {estimate.shape} and truth {truth.shape}")
-    if estimate.size == 0:
-        raise ValueError("estimate must not be empty")
     error = estimate - truth
-    result = np.sqrt(np.mean(error * error, axis=axis))
+    try:
+        mean_square = np.mean(error * error, axis=axis)
+    except (TypeError, ValueError):          # numpy's AxisError is a ValueError
+        raise ValueError(f"axis must be None, an int or a tuple of ints in "
+                         f"[-{error.ndim}, {error.ndim}), got {axis!r}") from None
+    result = np.sqrt(mean_square)
     return float(result) if np.ndim(result) == 0 else result
+
+
+def position_rmse(estimate, truth) -> float:
+    """RMS of the Euclidean error of each row: :math:`\\sqrt{\\tfrac1N \\sum_k \\|\\hat p_k - p_k\\|^2}`.
+
+    The usual "position RMSE" of a trajectory. Since the mean of a squared norm is the sum
+    of the per-axis mean squares, it equals the norm of :func:`rmse`'s per-axis values.
+
+    Parameters
+    ----------
+    estimate : array_like, shape (N, d)
+        Estimated positions (or any d-vectors), one row per time step.
+    truth : array_like, shape (N, d)
+        True values at the same steps.
+
+    Returns
+    -------
+    float
+        The RMS error, in the units of the inputs.
+
+    Raises
+    ------
+    ValueError
+        As for :func:`rmse`, and if the inputs are not 2-D (a single d-vector is
+        ambiguous: pass it as one row, shape (1, d)).
+    """
+    per_axis = rmse(estimate, truth, axis=0)
+    if np.ndim(per_axis) != 1:
+        raise ValueError(f"estimate must have shape (N, d), one row per step, got "
+                         f"shape {np.shape(estimate)}")
+    return float(np.linalg.norm(per_axis))
 
 
 # ---------------------------------------------------------------------------------------
@@ -113,7 +150,7 @@ def _check_batched_covariance(M: np.ndarray, name: str) -> None:
 
 def _normalised_squared(vec, cov, vec_name: str, cov_name: str):
     """:math:`d^T M^{-1} d` for one vector or a batch, via the Cholesky factor of M."""
-    d = np.asarray(vec, dtype=float)
+    d = as_real_array(vec, vec_name)
     if d.ndim == 1:
         d = as_vector(d, vec_name)
         M = as_covariance(cov, cov_name, d.shape[0], positive_definite=True)
@@ -123,7 +160,7 @@ def _normalised_squared(vec, cov, vec_name: str, cov_name: str):
     if d.ndim != 2:
         raise ValueError(f"{vec_name} must have shape (n,) or (N, n), got {d.shape}")
     N, n = d.shape
-    M = np.asarray(cov, dtype=float)
+    M = as_real_array(cov, cov_name)
     if M.shape == (n, n):
         M = np.broadcast_to(M, (N, n, n))
     elif M.shape != (N, n, n):
@@ -259,10 +296,17 @@ def _log_gamma_pq(a: float, u: float) -> tuple[float, float]:
 
 
 def _as_dof(dof) -> float:
-    dof = float(dof)
-    if not math.isfinite(dof) or dof <= 0:
-        raise ValueError(f"dof must be a positive, finite number of degrees of freedom, got {dof!r}")
-    return dof
+    return as_scalar(dof, "dof")
+
+
+def _broadcast(a, a_name: str, b, b_name: str) -> tuple[np.ndarray, np.ndarray]:
+    """Validate two real arrays (NaN allowed) and broadcast them, naming them on failure."""
+    a, b = as_real_array(a, a_name), as_real_array(b, b_name)
+    try:
+        return np.broadcast_arrays(a, b)
+    except ValueError:
+        raise ValueError(f"{a_name} and {b_name} must broadcast together, got shapes "
+                         f"{a.shape} and {b.shape}") from None
 
 
 def _chi2_cdf_scalar(x: float, dof: float) -> float:
@@ -353,7 +397,7 @@ def chi2_cdf(x, dof):
     ValueError
         If a ``dof`` is not positive and finite.
     """
-    x_arr, dof_arr = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(dof, dtype=float))
+    x_arr, dof_arr = _broadcast(x, "x", dof, "dof")
     out = np.empty(x_arr.shape)
     for idx in np.ndindex(x_arr.shape):
         out[idx] = _chi2_cdf_scalar(float(x_arr[idx]), _as_dof(dof_arr[idx]))
@@ -380,7 +424,7 @@ def chi2_ppf(p, dof):
     ValueError
         If a ``p`` lies outside [0, 1] or a ``dof`` is not positive and finite.
     """
-    p_arr, dof_arr = np.broadcast_arrays(np.asarray(p, dtype=float), np.asarray(dof, dtype=float))
+    p_arr, dof_arr = _broadcast(p, "p", dof, "dof")
     out = np.empty(p_arr.shape)
     for idx in np.ndindex(p_arr.shape):
         p_value = float(p_arr[idx])
@@ -427,13 +471,21 @@ def chi2_bounds(dof, n_runs=1, confidence=0.95):
     dof = _as_dof(dof)
     if isinstance(n_runs, (bool, np.bool_)) or not isinstance(n_runs, (int, np.integer)) or n_runs < 1:
         raise ValueError(f"n_runs must be a positive integer, got {n_runs!r}")
-    confidence = float(confidence)
-    if not 0.0 < confidence < 1.0:
+    confidence = as_scalar(confidence, "confidence")
+    if not confidence < 1.0:
         raise ValueError(f"confidence must lie strictly between 0 and 1, got {confidence!r}")
     total_dof = dof * int(n_runs)
     lo = chi2_ppf(0.5 * (1.0 - confidence), total_dof) / n_runs
     hi = chi2_ppf(0.5 * (1.0 + confidence), total_dof) / n_runs
     return lo, hi
+
+
+def _as_bound(value, name: str) -> float:
+    """An interval bound: one real number, not NaN (±inf is an open end)."""
+    arr = as_real_array(value, name)
+    if arr.ndim != 0 or np.isnan(arr):
+        raise ValueError(f"{name} must be one real number (not NaN), got {value!r}")
+    return float(arr)
 
 
 def share_inside(values, lo, hi):
@@ -455,12 +507,13 @@ def share_inside(values, lo, hi):
     Raises
     ------
     ValueError
-        If ``lo > hi`` or ``values`` holds no non-NaN value.
+        If ``lo`` or ``hi`` is not a number, ``lo > hi``, or ``values`` holds no non-NaN
+        value.
     """
-    lo, hi = float(lo), float(hi)
+    lo, hi = _as_bound(lo, "lo"), _as_bound(hi, "hi")
     if not lo <= hi:
         raise ValueError(f"lo must not exceed hi, got lo={lo!r}, hi={hi!r}")
-    values = np.asarray(values, dtype=float).ravel()
+    values = as_real_array(values, "values").ravel()
     values = values[~np.isnan(values)]
     if values.size == 0:
         raise ValueError("values must contain at least one non-NaN value")

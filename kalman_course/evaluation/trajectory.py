@@ -11,13 +11,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from kalman_course.core.validation import as_matrix
+from kalman_course.core import so3
+from kalman_course.core.validation import as_flag, as_matrix, as_scalar, as_vector
+from kalman_course.evaluation.metrics import position_rmse
 
 __all__ = ["umeyama", "apply_alignment", "ate_rmse"]
 
 
-def _points(value, name: str, n: int | None = None) -> np.ndarray:
-    return as_matrix(value, name, (n, 3))
+def _points(value, name: str, N: int | None = None) -> np.ndarray:
+    """``value`` as finite positions of shape (N, 3) (any N ≥ 1 when N is None)."""
+    return as_matrix(value, name, (N if N is not None else "N", 3))
 
 
 def umeyama(src, dst, with_scale: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
@@ -44,10 +47,12 @@ def umeyama(src, dst, with_scale: bool = False) -> tuple[np.ndarray, np.ndarray,
     Raises
     ------
     ValueError
-        If the shapes differ, N < 3, or the source points are all identical.
+        If ``src`` or ``dst`` is not a finite (N, 3) array, the shapes differ, N < 3, the
+        source points are all identical, or ``with_scale`` is not a bool.
     """
     src = _points(src, "src")
     dst = _points(dst, "dst", src.shape[0])
+    with_scale = as_flag(with_scale, "with_scale")
     n = src.shape[0]
     if n < 3:
         raise ValueError(f"src and dst need at least 3 point pairs, got {n}")
@@ -68,9 +73,37 @@ def umeyama(src, dst, with_scale: bool = False) -> tuple[np.ndarray, np.ndarray,
 
 
 def apply_alignment(points, R, t, s: float = 1.0) -> np.ndarray:
-    """Return ``s R p + t`` for each row p of ``points`` (N, 3)."""
+    """Apply a similarity transform: ``s R p + t`` for each row p of ``points``.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3)
+        Positions to move, m.
+    R : array_like, shape (3, 3)
+        Rotation matrix (orthonormal, det R = +1, to 1e-6), as :func:`umeyama` returns.
+    t : array_like, shape (3,)
+        Translation, m.
+    s : float, default 1.0
+        Scale, > 0.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, 3)
+        The moved positions, m.
+
+    Raises
+    ------
+    ValueError
+        If an argument is not finite or has the wrong shape, ``R`` is not a rotation, or
+        ``s`` is not positive.
+    """
     points = _points(points, "points")
-    return s * points @ np.asarray(R, dtype=float).T + np.asarray(t, dtype=float)
+    R = as_matrix(R, "R", (3, 3))
+    if not so3.is_rotation(R, tol=1e-6):
+        raise ValueError(f"R must be a rotation matrix (R Rᵀ = I, det R = +1), got {R.tolist()}")
+    t = as_vector(t, "t", 3)
+    s = as_scalar(s, "s")
+    return s * points @ R.T + t
 
 
 def ate_rmse(estimate, reference, align: str = "se3") -> float:
@@ -89,7 +122,15 @@ def ate_rmse(estimate, reference, align: str = "se3") -> float:
     Returns
     -------
     float
-        sqrt(mean_k |p_ref,k − aligned(p_est,k)|²), m.
+        sqrt(mean_k |p_ref,k − aligned(p_est,k)|²), m (:func:`~kalman_course.evaluation.metrics.position_rmse`
+        of the aligned estimate).
+
+    Raises
+    ------
+    ValueError
+        If ``estimate`` or ``reference`` is not a finite (N, 3) array, their shapes
+        differ, ``align`` is not one of the three names, or the alignment is undetermined
+        (see :func:`umeyama`).
     """
     est = _points(estimate, "estimate")
     ref = _points(reference, "reference", est.shape[0])
@@ -100,4 +141,4 @@ def ate_rmse(estimate, reference, align: str = "se3") -> float:
         aligned = apply_alignment(est, R, t, s)
     else:
         raise ValueError(f"align must be 'se3', 'sim3' or 'none', got {align!r}")
-    return float(np.sqrt(np.mean(np.sum((ref - aligned) ** 2, axis=1))))
+    return position_rmse(aligned, ref)

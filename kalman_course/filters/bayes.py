@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from kalman_course.core.validation import as_matrix, as_scalar, as_vector
+
 __all__ = [
     "normalise",
     "histogram_update",
@@ -29,14 +31,7 @@ _SUM_ATOL = 1e-8
 
 def _as_nonnegative_vector(value, name: str, n: int | None = None) -> np.ndarray:
     """Return ``value`` as a finite, non-negative 1-D float array (length n if given)."""
-    arr = np.asarray(value, dtype=float)
-    if arr.ndim != 1 or arr.size == 0:
-        raise ValueError(f"{name} must be a non-empty 1-D array of shape "
-                         f"({n if n is not None else 'n'},), got shape {arr.shape}")
-    if n is not None and arr.shape[0] != n:
-        raise ValueError(f"{name} must have shape ({n},), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite, got NaN or inf")
+    arr = as_vector(value, name, n)
     if np.any(arr < 0):
         raise ValueError(f"{name} must be non-negative, got minimum {arr.min():.3g}")
     return arr
@@ -144,11 +139,7 @@ def histogram_predict(belief, transition):
     """
     belief = _as_belief(belief, "belief")
     n = belief.shape[0]
-    transition = np.asarray(transition, dtype=float)
-    if transition.shape != (n, n):
-        raise ValueError(f"transition must have shape ({n}, {n}), got {transition.shape}")
-    if not np.all(np.isfinite(transition)):
-        raise ValueError("transition must be finite, got NaN or inf")
+    transition = as_matrix(transition, "transition", (n, n))
     if np.any(transition < 0):
         raise ValueError("transition must be non-negative (entries are probabilities)")
     column_sums = transition.sum(axis=0)
@@ -195,11 +186,7 @@ def circular_motion_model(n, step_probs):
     for offset, prob in step_probs.items():
         if isinstance(offset, (bool, np.bool_)) or not isinstance(offset, (int, np.integer)):
             raise ValueError(f"step_probs keys must be integer offsets, got {offset!r}")
-        prob = float(prob)
-        if not np.isfinite(prob) or prob < 0:
-            raise ValueError(f"step_probs values must be probabilities >= 0, "
-                             f"got {prob!r} for offset {offset}")
-        total += prob
+        total += as_scalar(prob, f"step_probs[{offset}]", allow_zero=True)
     if abs(total - 1.0) > _SUM_ATOL:
         raise ValueError(f"step_probs probabilities must sum to 1, got {total:.12g}")
 

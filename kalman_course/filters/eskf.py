@@ -31,28 +31,51 @@ R̂ = Ř Exp(−δθ̂), b̂ = b̌ − δb̂, and reset, δx̂ ← 0, optionally
 reset Jacobian G_r is the identity except its attitude block J_l(δθ̂) ≈ I + ½[δθ̂]× (for
 this sign convention; :func:`reset_jacobian`).
 
-Two implementations share these formulas:
+One set of formulas, two drivers
+--------------------------------
+Each formula above is written once, in a private kernel that works on one step or on a
+stack of steps (``_error_dynamics``, ``_noise_jacobian``, ``_discretise``,
+``_process_noise``, ``_propagate_covariance``, ``_mechanise``, ``_gain``, ``_inject``,
+``_reset_covariance``); rotations go through :mod:`kalman_course.core.so3` and the Kalman
+update through :mod:`kalman_course.core.linalg`. The public functions validate their
+arguments and call these kernels, and so do both drivers:
 
-- :class:`ESKF`, one step at a time, for lectures and exercises (readable, validated);
-- :func:`run`, the fast batch runner used on whole sequences: it merges IMU and observation
+- :class:`ESKF`, one step at a time, for lectures and exercises;
+- :func:`run`, the batch runner used on whole sequences: it merges IMU and observation
   times into one timeline (an observation between two IMU samples gets the IMU reading
-  interpolated at its time, so the filter is propagated exactly to it), propagates the
-  nominal state in vectorised segments between observations and keeps P symmetric.
+  interpolated at its time, so the filter is propagated exactly to it) and hands every
+  stretch between two observations to the same propagation kernel as
+  :meth:`ESKF.predict`, as one stack of steps.
+
+Gaps in the IMU stream
+----------------------
+A step of the IMU clock longer than ``gap_factor`` (default :data:`IMU_GAP_FACTOR` = 3)
+times the median step is a gap: at least two samples in a row are missing, and the
+midpoint rule bridges it with readings that may be far from what happened in between.
+:func:`run` propagates such a step (and every inserted node inside it) with the inflated
+``interpolated_imu`` noise of the configuration, as it does for interpolated samples, and
+emits an :class:`ImuGapWarning` saying how many gaps there were and how long.
+Timestamp jitter and a single missed sample (a step of up to about twice the median on
+KITTI) are not gaps.
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy import dot
 
 from kalman_course.core import so3
-from kalman_course.filters.eskf_config import EskfConfig, load_config
-from kalman_course.core.validation import as_matrix, as_vector
+from kalman_course.core.linalg import gain, innovation_covariance, joseph_update, symmetrise
+from kalman_course.core.observations import ROTATION_TOL, PoseObservations, PositionObservations
+from kalman_course.core.validation import as_covariance, as_matrix, as_scalar, as_vector
+from kalman_course.filters.eskf_config import BIAS_MODELS, EskfConfig, load_config
 
 __all__ = [
-    "NominalState", "ESKF", "EskfResult", "run", "evaluate",
+    "NominalState", "ESKF", "EskfResult", "run", "evaluate", "ImuGapWarning", "IMU_GAP_FACTOR",
     "error_dynamics", "noise_jacobian", "discretise", "process_noise", "propagate_covariance",
     "pose_residual", "position_residual", "kalman_gain", "update_covariance", "inject",
     "reset_jacobian", "reset_covariance", "nominal_step", "initial_covariance",
@@ -73,6 +96,13 @@ POSE_G.setflags(write=False)
 POSITION_G = np.zeros((3, 15))
 POSITION_G[:, IDX_P] = _I3
 POSITION_G.setflags(write=False)
+
+#: An IMU step longer than this many median steps is a gap (see the module docstring).
+IMU_GAP_FACTOR = 3.0
+
+
+class ImuGapWarning(UserWarning):
+    """:func:`run` found gaps in the IMU timestamps and bridged them with inflated noise."""
 
 
 @dataclass(frozen=True)
@@ -101,15 +131,335 @@ class NominalState:
 
     @classmethod
     def from_nav(cls, nav, accel_bias=None, gyro_bias=None) -> "NominalState":
-        """From anything with position, velocity and rotation (e.g. an ``imu.NavState``)."""
-        return cls(np.array(nav.position, dtype=float), np.array(nav.velocity, dtype=float),
-                   np.array(nav.rotation, dtype=float),
-                   np.zeros(3) if accel_bias is None else np.array(accel_bias, dtype=float),
-                   np.zeros(3) if gyro_bias is None else np.array(gyro_bias, dtype=float))
+        """From anything with position, velocity and rotation (e.g. an ``imu.NavState``).
+
+        Raises
+        ------
+        ValueError
+            If ``nav`` lacks one of the fields, a field has the wrong shape or is not
+            finite, ``nav.rotation`` is not a rotation, or a bias is not a finite (3,) vector.
+        """
+        for name in ("position", "velocity", "rotation"):
+            if not hasattr(nav, name):
+                raise ValueError(f"nav must have position (3,), velocity (3,) and rotation (3, 3); "
+                                 f"missing {name!r}")
+        return cls(np.array(as_vector(nav.position, "nav.position", 3)),
+                   np.array(as_vector(nav.velocity, "nav.velocity", 3)),
+                   np.array(_as_rotation(nav.rotation, "nav.rotation")),
+                   np.zeros(3) if accel_bias is None else np.array(as_vector(accel_bias, "accel_bias", 3)),
+                   np.zeros(3) if gyro_bias is None else np.array(as_vector(gyro_bias, "gyro_bias", 3)))
 
 
 # ---------------------------------------------------------------------------------------
-# The building blocks (one formula each)
+# Argument checks (every public function validates at its boundary with these)
+# ---------------------------------------------------------------------------------------
+
+def _as_rotation(value, name: str) -> np.ndarray:
+    """Return ``value`` as a (3, 3) rotation matrix: RᵀR = I within ROTATION_TOL, det R = +1."""
+    R = as_matrix(value, name, (3, 3))
+    error = float(np.abs(dot(R.T, R) - _I3).max())
+    (a, b, c), (d, e, f), (g, h, i) = R.tolist()
+    det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+    if error > ROTATION_TOL or det <= 0.0:
+        raise ValueError(f"{name} must be a rotation matrix (RᵀR = I within {ROTATION_TOL:g}, det +1), "
+                         f"got max |RᵀR − I| = {error:.3g}, det = {det:.3g}")
+    return R
+
+
+def _as_nominal(value, name: str) -> NominalState:
+    """Return ``value`` (a NominalState, or a NavState with zero biases) with every field checked."""
+    if not isinstance(value, NominalState):
+        if not all(hasattr(value, f) for f in ("position", "velocity", "rotation")):
+            raise ValueError(f"{name} must be a NominalState or have position (3,), velocity (3,) and "
+                             f"rotation (3, 3), got {type(value).__name__}")
+        value = NominalState(value.position, value.velocity, value.rotation)
+    fields = (as_vector(value.position, f"{name}.position", 3),
+              as_vector(value.velocity, f"{name}.velocity", 3),
+              _as_rotation(value.rotation, f"{name}.rotation"),
+              as_vector(value.accel_bias, f"{name}.accel_bias", 3),
+              as_vector(value.gyro_bias, f"{name}.gyro_bias", 3))
+    if all(new is old for new, old in zip(fields, (value.position, value.velocity, value.rotation,
+                                                      value.accel_bias, value.gyro_bias))):
+        return value
+    return NominalState(*(np.array(f) for f in fields))
+
+
+def _as_bias_model(bias_model) -> str:
+    if bias_model not in BIAS_MODELS:
+        raise ValueError(f"bias_model must be 'random_walk' or 'constant', got {bias_model!r}")
+    return bias_model
+
+
+def _as_density(density) -> np.ndarray:
+    d = as_vector(density, "density", 4)
+    if (d < 0.0).any():
+        raise ValueError(f"density must hold four non-negative noise densities (σ_a, σ_ω, σ_ba, σ_bω), got {d}")
+    return d
+
+
+def _as_config(config) -> EskfConfig:
+    if isinstance(config, EskfConfig):
+        return config
+    if isinstance(config, (str, dict)) or hasattr(config, "__fspath__"):
+        return load_config(config)
+    raise ValueError(f"config must be an EskfConfig or the name or path of a configuration file, "
+                     f"got {type(config).__name__}")
+
+
+def _as_flag(value, name: str) -> bool:
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be True or False, got {value!r}")
+    return bool(value)
+
+
+def _as_finite_rows(value, name: str, tail: tuple, offset: int = 0) -> np.ndarray:
+    """Return ``value`` as a float array (N, *tail); a NaN or inf raises naming its row."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a numeric array, got {type(value).__name__}") from None
+    if arr.ndim != 1 + len(tail) or arr.shape[1:] != tail:
+        want = ", ".join(["N", *map(str, tail)])
+        raise ValueError(f"{name} must have shape ({want}), got {arr.shape}")
+    finite = np.isfinite(arr)
+    if not finite.all():
+        rows = finite.reshape(len(arr), -1).all(axis=1)
+        k = int(np.argmin(rows))
+        kind = "NaN" if np.isnan(arr[k]).any() else "inf"
+        raise ValueError(f"{name}[{k + offset}] is {kind}")
+    return arr
+
+
+def _as_gravity(value) -> np.ndarray:
+    """Gravity g (3,) in the navigation frame; a NaN or inf is reported with its index."""
+    try:
+        shape = np.shape(value)
+    except (TypeError, ValueError):
+        shape = None
+    if shape != (3,):
+        raise ValueError(f"gravity must have shape (3,) (m/s², navigation frame), got {shape}")
+    return _as_finite_rows(value, "gravity", ())
+
+
+def _as_time(value, name: str) -> float:
+    try:
+        t = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a finite time in seconds, got {value!r}") from None
+    if not math.isfinite(t):
+        raise ValueError(f"{name} must be a finite time in seconds, got {value!r}")
+    return t
+
+
+def _as_observations(value, name: str, record: type):
+    """``value`` as a ``record`` (PoseObservations or PositionObservations), validated there."""
+    if value is None or isinstance(value, record):
+        return value
+    fields = ("t", "position", "rotation") if record is PoseObservations else ("t", "position")
+    missing = [f for f in fields if not hasattr(value, f)]
+    if missing:
+        raise ValueError(f"{name} must be a {record.__name__} (or have {', '.join(fields)}); "
+                         f"missing {', '.join(missing)}")
+    try:
+        return record(**{f: getattr(value, f) for f in fields})
+    except ValueError as exc:
+        raise ValueError(f"{name}: {exc}") from None
+
+
+# ---------------------------------------------------------------------------------------
+# Kernels: each formula once, for one step or a stack of steps (leading axis), unvalidated
+# ---------------------------------------------------------------------------------------
+
+def _error_dynamics(R, a, w) -> np.ndarray:
+    """F_t (..., 15, 15) at attitude R (..., 3, 3), corrected force a and rate w (..., 3)."""
+    F = np.zeros((*R.shape[:-2], 15, 15))
+    F[..., IDX_P, IDX_V] = _I3
+    np.negative(R @ so3.hat(a), out=F[..., IDX_V, IDX_TH])      # −R[a]×: body-frame force in the hat
+    np.negative(R, out=F[..., IDX_V, IDX_BA])                   # −R
+    np.negative(so3.hat(w), out=F[..., IDX_TH, IDX_TH])         # −[ω]×
+    F[..., IDX_TH, IDX_BW] = -_I3
+    return F
+
+
+def _noise_jacobian(R, bias_model: str) -> np.ndarray:
+    """B_t (..., 15, 12) or (..., 15, 6): columns n_a, n_ω[, n_ba, n_bω]."""
+    B = np.zeros((*R.shape[:-2], 15, 12 if bias_model == "random_walk" else 6))
+    B[..., IDX_V, 0:3] = R
+    B[..., IDX_TH, 3:6] = _I3
+    if bias_model == "random_walk":
+        B[..., IDX_BA, 6:9] = _I3
+        B[..., IDX_BW, 9:12] = _I3
+    return B
+
+
+def _discretise(F_t, B_t, T, overwrite: bool = False):
+    """F = I + F_t T and B with white-noise columns × T, random-walk columns × √T (T scalar or (n,)).
+
+    ``overwrite`` lets a caller that made F_t and B_t for this purpose have them scaled in place.
+    """
+    T = np.asarray(T, dtype=float)[..., None, None]
+    F = np.multiply(F_t, T, out=F_t if overwrite else None)
+    F.reshape(-1, 225)[:, ::16] += 1.0                     # + I: every 16th entry of a 15 × 15 block
+    B = B_t if overwrite else B_t.copy()
+    B[..., :6] *= T
+    B[..., 6:] *= np.sqrt(T)
+    return F, B
+
+
+def _process_noise(density, T, bias_model: str) -> np.ndarray:
+    """The diagonal of Q (..., 12) or (..., 6): σ_a²/T ×3, σ_ω²/T ×3[, σ_ba² ×3, σ_bω² ×3].
+
+    ``density`` (..., 4) and ``T`` (...) broadcast against each other.
+    """
+    d2 = np.asarray(density, dtype=float) ** 2
+    T = np.asarray(T, dtype=float)[..., None]
+    white = np.repeat(d2[..., 0:2], 3, axis=-1) / T
+    if bias_model == "constant":
+        return white
+    walk = np.broadcast_to(np.repeat(d2[..., 2:4], 3, axis=-1), white.shape)
+    return np.concatenate([white, walk], axis=-1)
+
+
+def _propagate_covariance(P, F, B, Q) -> np.ndarray:
+    """P after n steps P ← F_i P F_iᵀ + B_i Q_i B_iᵀ (F (n, 15, 15), B (n, 15, k)).
+
+    ``Q`` is (n, k, k), or (n, k) for the diagonal Q of :func:`_process_noise`. Composed:
+    with Ψ_i = F_{n−1} ⋯ F_{i+1} (Ψ_{n−1} = I) and Φ = Ψ_0 F_0,
+    P_n = Φ P Φᵀ + Σ_i (Ψ_i B_i) Q_i (Ψ_i B_i)ᵀ, one matrix product per step instead of
+    two; for n = 1 it is F P Fᵀ + B Q Bᵀ. Returns (P_n, Φ).
+    """
+    n = F.shape[0]
+    Psi = np.empty((n, 15, 15))
+    Psi[n - 1] = _I15
+    Psi_i, F_i = list(Psi), list(F)         # views: the least overhead per product
+    for i in range(n - 2, -1, -1):
+        dot(Psi_i[i + 1], F_i[i + 1], out=Psi_i[i])
+    Phi = dot(Psi[0], F[0])
+    if Q.ndim == 2:
+        # diagonal Q: Σ_i (Ψ_i B_i √Q_i)(Ψ_i B_i √Q_i)ᵀ = L Lᵀ with the L_i side by side, one product
+        L = Psi @ (B * np.sqrt(Q)[:, None, :])
+        L = np.swapaxes(L, 0, 1).reshape(15, -1)
+        noise = dot(L, L.T)
+    else:
+        M = Psi @ B
+        noise = (M @ Q @ np.swapaxes(M, 1, 2)).sum(axis=0)
+    return symmetrise(dot(dot(Phi, P), Phi.T) + noise), Phi
+
+
+def _mechanise(x: NominalState, a, w, dt, g):
+    """Midpoint mechanisation over n steps: p, v, R at the n+1 nodes.
+
+    ``a`` (n+1, 3): bias-corrected specific force f − b_a at the nodes; ``w`` (n, 3): each
+    step's bias-corrected mean rate ½(ω_i + ω_{i+1}) − b_ω; ``dt`` (n,). Per step:
+    R' = R Exp(w T); a_i = R_i a_i + g (nav frame); v' = v + ½(a_i + a_{i+1}) T;
+    p' = p + v T + ¼(a_i + a_{i+1}) T².
+    """
+    n = len(dt)
+    dtc = dt[:, None]
+    steps = list(so3.exp(w * dtc))
+    Rs = np.empty((n + 1, 3, 3))
+    Rs[0] = x.rotation
+    R_i = list(Rs)                          # views: the least overhead per product
+    for i in range(n):
+        dot(R_i[i], steps[i], out=R_i[i + 1])
+    acc = np.matmul(Rs, a[:, :, None])[:, :, 0]
+    acc += g
+    dv = acc[:-1] + acc[1:]
+    dv *= 0.5 * dtc                         # ½(a_i + a_{i+1}) T
+    vs = np.empty((n + 1, 3))
+    vs[0] = 0.0
+    np.cumsum(dv, axis=0, out=vs[1:])
+    vs += x.velocity
+    dp = vs[:-1] + 0.5 * dv
+    dp *= dtc                               # v_i T + ¼(a_i + a_{i+1}) T²
+    ps = np.empty((n + 1, 3))
+    ps[0] = 0.0
+    np.cumsum(dp, axis=0, out=ps[1:])
+    ps += x.position
+    return ps, vs, Rs
+
+
+def _propagate(x: NominalState, P, f, w_mean, dt, q, g, bias_model: str):
+    """Nominal state and covariance over n steps.
+
+    ``f`` (n+1, 3): the specific force at the nodes; ``w_mean`` (n, 3): each step's mean
+    rate ½(ω_i + ω_{i+1}); ``dt`` (n,); ``q`` (n, k): the diagonal of each step's Q from
+    :func:`_process_noise`. F and B are evaluated at the start of each step: the state
+    there, the bias-corrected specific force f_i − b_a and the mean rate ω̄_i − b_ω.
+    Returns (x at the last node, P there, Φ = ∏ F, positions (n+1, 3), rotations (n+1, 3, 3)).
+    """
+    a = f - x.accel_bias
+    w = w_mean - x.gyro_bias
+    ps, vs, Rs = _mechanise(x, a, w, dt, g)
+    R_start = Rs[:-1]
+    F, B = _discretise(_error_dynamics(R_start, a[:-1], w), _noise_jacobian(R_start, bias_model), dt,
+                       overwrite=True)
+    P, Phi = _propagate_covariance(P, F, B, q)
+    return NominalState(ps[-1], vs[-1], Rs[-1], x.accel_bias, x.gyro_bias), P, Phi, ps, Rs
+
+
+def _pose_residual(p_check, R_check, p_meas, R_meas) -> np.ndarray:
+    return np.concatenate([p_check - p_meas, so3.log(dot(R_meas.T, R_check))])
+
+
+def _position_residual(p_check, p_meas) -> np.ndarray:
+    return p_check - p_meas
+
+
+def _gain(P, G, R):
+    """K = P Gᵀ S⁻¹ and S = G P Gᵀ + R."""
+    GP = dot(G, P)
+    S = innovation_covariance(GP, G, R)
+    return gain(GP, S), S
+
+
+def _inject(x: NominalState, dx) -> NominalState:
+    return NominalState(x.position - dx[IDX_P], x.velocity - dx[IDX_V],
+                        dot(x.rotation, so3.exp(-dx[IDX_TH])),
+                        x.accel_bias - dx[IDX_BA], x.gyro_bias - dx[IDX_BW])
+
+
+def _reset_jacobian(dtheta) -> np.ndarray:
+    G = _I15.copy()
+    G[IDX_TH, IDX_TH] = so3.left_jacobian(dtheta)
+    return G
+
+
+def _reset_covariance(P, dtheta, exact: bool) -> np.ndarray:
+    """G_r P G_rᵀ (exact) or a copy of P. G_r (:func:`_reset_jacobian`) differs from I only in
+    its attitude block J = J_l(δθ̂), so only the attitude rows and columns of P change:
+    J P[θ, :] and then P[:, θ] Jᵀ."""
+    P = P.copy()
+    if not exact:
+        return P
+    J = so3.left_jacobian(dtheta)
+    P[IDX_TH] = dot(J, P[IDX_TH])
+    P[:, IDX_TH] = dot(P[:, IDX_TH], J.T)
+    return symmetrise(P)
+
+
+def _correct(x: NominalState, P, y, G, R, exact_reset: bool, dx_prior=None):
+    """Update with residual y (observation Jacobian G, noise R), inject, reset.
+
+    Returns (x̂, P̂, innovation y − G δx̌, S). ``dx_prior`` None means δx̌ = 0.
+    """
+    K, S = _gain(P, G, R)
+    innovation = y if dx_prior is None else y - dot(G, dx_prior)
+    dx = dot(K, innovation) if dx_prior is None else dx_prior + dot(K, innovation)
+    P = joseph_update(P, K, G, R, _I15)
+    return _inject(x, dx), _reset_covariance(P, dx[IDX_TH], exact_reset), innovation, S
+
+
+def _lidar_noise(config: EskfConfig) -> np.ndarray:
+    return np.diag(config.lidar_std ** 2)
+
+
+def _gnss_noise(config: EskfConfig) -> np.ndarray:
+    return np.eye(3) * config.gnss_std ** 2
+
+
+# ---------------------------------------------------------------------------------------
+# The building blocks (validated; one formula each, in the kernels above)
 # ---------------------------------------------------------------------------------------
 
 def error_dynamics(R, specific_force, angular_rate, accel_bias, gyro_bias) -> np.ndarray:
@@ -118,39 +468,26 @@ def error_dynamics(R, specific_force, angular_rate, accel_bias, gyro_bias) -> np
     Parameters
     ----------
     R : array_like, shape (3, 3)
-        Nominal attitude R_nb.
+        Nominal attitude R_nb (a rotation matrix).
     specific_force, angular_rate : array_like, shape (3,)
         The IMU readings f (m/s²) and ω_m (rad/s), body frame.
     accel_bias, gyro_bias : array_like, shape (3,)
         Nominal biases b_a (m/s²), b_ω (rad/s); subtracted from the readings.
     """
-    R = np.asarray(R, dtype=float)
-    a = np.asarray(specific_force, dtype=float) - np.asarray(accel_bias, dtype=float)
-    w = np.asarray(angular_rate, dtype=float) - np.asarray(gyro_bias, dtype=float)
-    F = np.zeros((15, 15))
-    F[IDX_P, IDX_V] = _I3
-    F[IDX_V, IDX_TH] = -R @ so3.hat(a)          # body-frame specific force inside the hat
-    F[IDX_V, IDX_BA] = -R
-    F[IDX_TH, IDX_TH] = -so3.hat(w)
-    F[IDX_TH, IDX_BW] = -_I3
-    return F
+    R = _as_rotation(R, "R")
+    a = as_vector(specific_force, "specific_force", 3) - as_vector(accel_bias, "accel_bias", 3)
+    w = as_vector(angular_rate, "angular_rate", 3) - as_vector(gyro_bias, "gyro_bias", 3)
+    return _error_dynamics(R, a, w)
 
 
 def noise_jacobian(R, bias_model: str = "random_walk") -> np.ndarray:
     """Continuous-time noise Jacobian B_t: (15, 12) for a random-walk bias, (15, 6) constant.
 
-    Columns: n_a (3), n_ω (3) and, for the random walk, n_ba (3), n_bω (3).
+    Columns: n_a (3), n_ω (3) and, for the random walk, n_ba (3), n_bω (3). ``R`` (3, 3) is
+    the nominal attitude.
     """
-    R = np.asarray(R, dtype=float)
-    if bias_model not in ("random_walk", "constant"):
-        raise ValueError(f"bias_model must be 'random_walk' or 'constant', got {bias_model!r}")
-    B = np.zeros((15, 12 if bias_model == "random_walk" else 6))
-    B[IDX_V, 0:3] = R
-    B[IDX_TH, 3:6] = _I3
-    if bias_model == "random_walk":
-        B[IDX_BA, 6:9] = _I3
-        B[IDX_BW, 9:12] = _I3
-    return B
+    bias_model = _as_bias_model(bias_model)
+    return _noise_jacobian(_as_rotation(R, "R"), bias_model)
 
 
 def discretise(F_t, B_t, T: float) -> tuple[np.ndarray, np.ndarray]:
@@ -162,19 +499,19 @@ def discretise(F_t, B_t, T: float) -> tuple[np.ndarray, np.ndarray]:
     B_t : array_like, shape (15, 12) or (15, 6)
         Its first six columns belong to n_a and n_ω; any further ones to the bias random walks.
     T : float
-        Step length, s.
+        Step length, s (> 0).
 
     Returns
     -------
     F : numpy.ndarray, shape (15, 15)
     B : numpy.ndarray, same shape as B_t
     """
-    F_t = np.asarray(F_t, dtype=float)
-    B = np.array(B_t, dtype=float)
-    T = float(T)
-    B[:, :6] *= T
-    B[:, 6:] *= math.sqrt(T)
-    return np.eye(15) + F_t * T, B
+    F_t = as_matrix(F_t, "F_t", (15, 15))
+    B_t = as_matrix(B_t, "B_t", (15, None))
+    if B_t.shape[1] not in (6, 12):
+        raise ValueError(f"B_t must have shape (15, 12) (random-walk bias) or (15, 6) (constant bias), "
+                         f"got {B_t.shape}")
+    return _discretise(F_t, B_t, as_scalar(T, "T"))
 
 
 def process_noise(density, T: float, bias_model: str = "random_walk") -> np.ndarray:
@@ -186,7 +523,7 @@ def process_noise(density, T: float, bias_model: str = "random_walk") -> np.ndar
         Continuous densities (σ_a, σ_ω, σ_ba, σ_bω) in m/s²/√Hz, rad/s/√Hz, m/s³/√Hz,
         rad/s²/√Hz (``EskfConfig.process_density``).
     T : float
-        Step length, s.
+        Step length, s (> 0).
     bias_model : str
         "random_walk" → (12, 12); "constant" → (6, 6) (no bias noise).
 
@@ -196,49 +533,76 @@ def process_noise(density, T: float, bias_model: str = "random_walk") -> np.ndar
         diag(σ_a²/T ×3, σ_ω²/T ×3[, σ_ba² ×3, σ_bω² ×3]). With B from :func:`discretise`,
         B Q Bᵀ has σ²·T on each block.
     """
-    s = np.asarray(density, dtype=float)
-    T = float(T)
-    d = [s[0] ** 2 / T] * 3 + [s[1] ** 2 / T] * 3
-    if bias_model == "random_walk":
-        d += [s[2] ** 2] * 3 + [s[3] ** 2] * 3
-    elif bias_model != "constant":
-        raise ValueError(f"bias_model must be 'random_walk' or 'constant', got {bias_model!r}")
-    return np.diag(d)
+    density = _as_density(density)
+    T = as_scalar(T, "T")
+    return np.diag(_process_noise(density, T, _as_bias_model(bias_model)))
 
 
 def propagate_covariance(P, F, B, Q) -> np.ndarray:
-    """P̌ = F P̂ Fᵀ + B Q Bᵀ, returned exactly symmetric."""
-    P = np.asarray(P, dtype=float)
-    out = F @ P @ F.T + B @ Q @ B.T
-    return 0.5 * (out + out.T)
+    """P̌ = F P̂ Fᵀ + B Q Bᵀ, returned exactly symmetric.
+
+    Parameters
+    ----------
+    P : array_like, shape (15, 15)
+        P̂, symmetric.
+    F : array_like, shape (15, 15)
+    B : array_like, shape (15, k)
+    Q : array_like, shape (k, k)
+        Symmetric.
+    """
+    P = as_covariance(P, "P", 15)
+    F = as_matrix(F, "F", (15, 15))
+    B = as_matrix(B, "B", (15, None))
+    Q = as_covariance(Q, "Q", B.shape[1])
+    return _propagate_covariance(P, F[None], B[None], Q[None])[0]
 
 
 def pose_residual(p_check, R_check, p_meas, R_meas) -> np.ndarray:
-    """y = [p̌ − p_m; Log(R_mᵀ Ř)], shape (6,): prediction minus measurement (m, rad)."""
-    p_check = np.asarray(p_check, dtype=float)
-    dp = p_check - np.asarray(p_meas, dtype=float)
-    dth = so3.log(np.asarray(R_meas, dtype=float).T @ np.asarray(R_check, dtype=float))
-    return np.concatenate([dp, dth])
+    """y = [p̌ − p_m; Log(R_mᵀ Ř)], shape (6,): prediction minus measurement (m, rad).
+
+    ``p_check``, ``p_meas`` (3,); ``R_check``, ``R_meas`` (3, 3) rotation matrices.
+    """
+    return _pose_residual(as_vector(p_check, "p_check", 3), _as_rotation(R_check, "R_check"),
+                          as_vector(p_meas, "p_meas", 3), _as_rotation(R_meas, "R_meas"))
 
 
 def position_residual(p_check, p_meas) -> np.ndarray:
     """y = p̌ − p_m, shape (3,), m."""
-    return np.asarray(p_check, dtype=float) - np.asarray(p_meas, dtype=float)
+    return _position_residual(as_vector(p_check, "p_check", 3), as_vector(p_meas, "p_meas", 3))
 
 
 def kalman_gain(P, G, R) -> np.ndarray:
-    """K = P Gᵀ (G P Gᵀ + R)⁻¹ (observation-noise Jacobian C = I)."""
-    P, G, R = np.asarray(P, dtype=float), np.asarray(G, dtype=float), np.asarray(R, dtype=float)
-    S = G @ P @ G.T + R
-    return np.linalg.solve(S, G @ P).T
+    """K = P Gᵀ (G P Gᵀ + R)⁻¹ (observation-noise Jacobian C = I).
+
+    Parameters
+    ----------
+    P : array_like, shape (n, n)
+        P̌, symmetric.
+    G : array_like, shape (m, n)
+    R : array_like, shape (m, m)
+        Observation noise, symmetric positive definite.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, m)
+    """
+    P = as_covariance(P, "P")
+    G = as_matrix(G, "G", (None, P.shape[0]))
+    R = as_covariance(R, "R", G.shape[0], positive_definite=True)
+    return _gain(P, G, R)[0]
 
 
 def update_covariance(P, K, G, R) -> np.ndarray:
-    """Joseph form P̂ = (I − K G) P̌ (I − K G)ᵀ + K R Kᵀ, returned exactly symmetric."""
-    P, K, G, R = (np.asarray(x, dtype=float) for x in (P, K, G, R))
-    A = np.eye(P.shape[0]) - K @ G
-    out = A @ P @ A.T + K @ R @ K.T
-    return 0.5 * (out + out.T)
+    """Joseph form P̂ = (I − K G) P̌ (I − K G)ᵀ + K R Kᵀ, returned exactly symmetric.
+
+    ``P`` (n, n), ``K`` (n, m), ``G`` (m, n), ``R`` (m, m); valid for any gain K.
+    """
+    P = as_covariance(P, "P")
+    n = P.shape[0]
+    G = as_matrix(G, "G", (None, n))
+    K = as_matrix(K, "K", (n, G.shape[0]))
+    R = as_covariance(R, "R", G.shape[0])
+    return joseph_update(P, K, G, R)
 
 
 def inject(nominal: NominalState, dx) -> NominalState:
@@ -246,10 +610,7 @@ def inject(nominal: NominalState, dx) -> NominalState:
 
     p̂ = p̌ − δp̂, v̂ = v̌ − δv̂, R̂ = Ř Exp(−δθ̂), b̂_a = b̌_a − δb̂_a, b̂_ω = b̌_ω − δb̂_ω.
     """
-    dx = np.asarray(dx, dtype=float)
-    return NominalState(nominal.position - dx[IDX_P], nominal.velocity - dx[IDX_V],
-                        nominal.rotation @ so3.exp(-dx[IDX_TH]),
-                        nominal.accel_bias - dx[IDX_BA], nominal.gyro_bias - dx[IDX_BW])
+    return _inject(_as_nominal(nominal, "nominal"), as_vector(dx, "dx", 15))
 
 
 def reset_jacobian(dx) -> np.ndarray:
@@ -259,20 +620,17 @@ def reset_jacobian(dx) -> np.ndarray:
     whose derivative at δθ = δθ̂ is the left Jacobian J_l(δθ̂) = I + ½[δθ̂]× + O(|δθ̂|²);
     every other block is the identity.
     """
-    dx = np.asarray(dx, dtype=float)
-    G = np.eye(15)
-    G[IDX_TH, IDX_TH] = so3.left_jacobian(dx[IDX_TH])
-    return G
+    return _reset_jacobian(as_vector(dx, "dx", 15)[IDX_TH])
 
 
 def reset_covariance(P, dx, exact: bool = True) -> np.ndarray:
-    """Covariance after the reset δx̂ ← 0: G_r P G_rᵀ (exact) or P unchanged (lecture)."""
-    P = np.asarray(P, dtype=float)
-    if not exact:
-        return P.copy()
-    G = reset_jacobian(dx)
-    out = G @ P @ G.T
-    return 0.5 * (out + out.T)
+    """Covariance after the reset δx̂ ← 0: G_r P G_rᵀ (exact) or P unchanged (lecture).
+
+    ``P`` (15, 15) symmetric, ``dx`` (15,) the injected δx̂, ``exact`` a bool.
+    """
+    P = as_covariance(P, "P", 15)
+    dx = as_vector(dx, "dx", 15)
+    return _reset_covariance(P, dx[IDX_TH], _as_flag(exact, "exact"))
 
 
 def nominal_step(nominal: NominalState, f0, w0, f1, w1, dt: float, gravity) -> NominalState:
@@ -280,21 +638,27 @@ def nominal_step(nominal: NominalState, f0, w0, f1, w1, dt: float, gravity) -> N
 
     R' = R Exp((½(ω₀ + ω₁) − b_ω) T); a_i = R_i (f_i − b_a) + g; v' = v + ½(a₀ + a₁) T;
     p' = p + v T + ¼(a₀ + a₁) T².
+
+    Parameters
+    ----------
+    nominal : NominalState
+    f0, w0, f1, w1 : array_like, shape (3,)
+        Specific force (m/s²) and angular rate (rad/s) at the start and end of the step.
+    dt : float
+        Step length T, s (> 0).
+    gravity : array_like, shape (3,)
     """
-    f0, f1, w0, w1, g = (np.asarray(x, dtype=float) for x in (f0, f1, w0, w1, gravity))
-    R = nominal.rotation
-    R1 = R @ so3.exp((0.5 * (w0 + w1) - nominal.gyro_bias) * dt)
-    a0 = R @ (f0 - nominal.accel_bias) + g
-    a1 = R1 @ (f1 - nominal.accel_bias) + g
-    am = 0.5 * (a0 + a1)
-    return NominalState(nominal.position + nominal.velocity * dt + 0.5 * am * dt * dt,
-                        nominal.velocity + am * dt, R1, nominal.accel_bias.copy(),
-                        nominal.gyro_bias.copy())
+    x = _as_nominal(nominal, "nominal")
+    f = np.stack([as_vector(f0, "f0", 3), as_vector(f1, "f1", 3)])
+    w_mean = 0.5 * (as_vector(w0, "w0", 3) + as_vector(w1, "w1", 3))
+    ps, vs, Rs = _mechanise(x, f - x.accel_bias, w_mean[None] - x.gyro_bias,
+                            np.array([as_scalar(dt, "dt")]), _as_gravity(gravity))
+    return NominalState(ps[1], vs[1], Rs[1], x.accel_bias.copy(), x.gyro_bias.copy())
 
 
 def initial_covariance(config: EskfConfig) -> np.ndarray:
-    """P̂₀ = diag(prior std²) from the configuration, (15, 15)."""
-    return np.diag(config.prior_std ** 2)
+    """P̂₀ = diag(prior std²) from the configuration (or a configuration's name), (15, 15)."""
+    return np.diag(_as_config(config).prior_std ** 2)
 
 
 # ---------------------------------------------------------------------------------------
@@ -313,7 +677,7 @@ class ESKF:
     gravity : array_like, shape (3,)
         g in the navigation frame, m/s².
     P0 : array_like, shape (15, 15), optional
-        Initial covariance (default: from ``config.prior``).
+        Initial covariance, symmetric (default: from ``config.prior``).
 
     Attributes
     ----------
@@ -324,12 +688,11 @@ class ESKF:
     """
 
     def __init__(self, config, initial, gravity, P0=None):
-        self.config = config if isinstance(config, EskfConfig) else load_config(config)
-        if not isinstance(initial, NominalState):
-            initial = NominalState.from_nav(initial)
-        self.nominal = initial
-        self.gravity = as_vector(gravity, "gravity", 3)
-        self.P = initial_covariance(self.config) if P0 is None else as_matrix(P0, "P0", (15, 15)).copy()
+        self.config = _as_config(config)
+        self.nominal = _as_nominal(initial, "initial")
+        self.gravity = _as_gravity(gravity)
+        self.P = (initial_covariance(self.config) if P0 is None
+                  else np.array(as_covariance(P0, "P0", 15)))
         self.dx = np.zeros(15)
 
     def predict(self, f0, w0, f1, w1, dt: float, interpolated: bool = False) -> None:
@@ -337,44 +700,49 @@ class ESKF:
 
         F is evaluated at the state and readings at the start of the interval (the
         bias-corrected body-frame specific force f0 − b_a and the mean rate ½(ω₀ + ω₁) − b_ω).
-        ``interpolated`` selects the inflated noise of the configuration's ``interpolated_imu``.
-        """
-        cfg = self.config
-        x = self.nominal
-        F_t = error_dynamics(x.rotation, f0, 0.5 * (np.asarray(w0) + np.asarray(w1)),
-                             x.accel_bias, x.gyro_bias)
-        B_t = noise_jacobian(x.rotation, cfg.bias_model)
-        F, B = discretise(F_t, B_t, dt)
-        density = cfg.interpolated_density if interpolated else cfg.process_density
-        Q = process_noise(density, dt, cfg.bias_model)
-        self.P = propagate_covariance(self.P, F, B, Q)
-        self.dx = F @ self.dx
-        self.nominal = nominal_step(x, f0, w0, f1, w1, dt, self.gravity)
+        ``interpolated`` selects the inflated noise of the configuration's ``interpolated_imu``
+        (for samples interpolated over a dropout, and for gaps in the IMU clock).
 
-    def _correct(self, y, G, Rn) -> dict:
-        S = G @ self.P @ G.T + Rn
-        K = kalman_gain(self.P, G, Rn)
-        innovation = y - G @ self.dx
-        self.dx = self.dx + K @ innovation
-        self.P = update_covariance(self.P, K, G, Rn)
-        self.nominal = inject(self.nominal, self.dx)
-        self.P = reset_covariance(self.P, self.dx, self.config.exact_reset)
+        Parameters
+        ----------
+        f0, w0, f1, w1 : array_like, shape (3,)
+            Specific force (m/s²) and angular rate (rad/s) at the start and end.
+        dt : float
+            Step length, s; must be positive and finite.
+        interpolated : bool
+        """
+        f = np.stack([as_vector(f0, "f0", 3), as_vector(f1, "f1", 3)])
+        w = np.stack([as_vector(w0, "w0", 3), as_vector(w1, "w1", 3)])
+        dt = as_scalar(dt, "dt")
+        cfg = self.config
+        density = cfg.interpolated_density if _as_flag(interpolated, "interpolated") else cfg.process_density
+        q = _process_noise(density, dt, cfg.bias_model)
+        self.nominal, self.P, Phi, _, _ = _propagate(self.nominal, self.P, f, 0.5 * (w[:1] + w[1:]),
+                                                     np.array([dt]), q[None], self.gravity, cfg.bias_model)
+        self.dx = dot(Phi, self.dx)
+
+    def _update(self, y, G, R) -> dict:
+        self.nominal, self.P, innovation, S = _correct(self.nominal, self.P, y, G, R,
+                                                       self.config.exact_reset, self.dx)
         self.dx = np.zeros(15)
         return {"innovation": innovation, "S": S}
 
     def update_pose(self, p_meas, R_meas) -> dict:
-        """Lidar pose update, injection and reset; returns the innovation (6,) and S (6, 6)."""
+        """Lidar pose update, injection and reset; returns the innovation (6,) and S (6, 6).
+
+        ``p_meas`` (3,) m; ``R_meas`` (3, 3) a rotation matrix.
+        """
         y = pose_residual(self.nominal.position, self.nominal.rotation, p_meas, R_meas)
-        return self._correct(y, POSE_G, np.diag(self.config.lidar_std ** 2))
+        return self._update(y, POSE_G, _lidar_noise(self.config))
 
     def update_position(self, p_meas) -> dict:
         """GNSS position update, injection and reset; returns the innovation (3,) and S (3, 3)."""
         y = position_residual(self.nominal.position, p_meas)
-        return self._correct(y, POSITION_G, np.eye(3) * self.config.gnss_std ** 2)
+        return self._update(y, POSITION_G, _gnss_noise(self.config))
 
 
 # ---------------------------------------------------------------------------------------
-# Fast batch runner
+# Batch runner
 # ---------------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
@@ -416,7 +784,7 @@ class EskfResult:
 
     def at(self, times) -> "EskfResult":
         """The rows whose time is one of ``times`` (within 1 µs), e.g. the truth's times."""
-        times = np.asarray(times, dtype=float)
+        times = as_vector(times, "times")
         k = np.clip(np.searchsorted(times, self.t - 1e-6), 0, len(times) - 1)
         keep = np.abs(times[k] - self.t) <= 1e-6
         return EskfResult(self.t[keep], self.position[keep], self.velocity[keep], self.rotation[keep],
@@ -428,95 +796,85 @@ class EskfResult:
         return np.sqrt(np.maximum(np.diagonal(self.P, axis1=1, axis2=2), 0.0))
 
 
-def _exp_batch(phi: np.ndarray) -> np.ndarray:
-    """Rodrigues for a stack (n, 3) without validation: cos θ I + A [φ]× + B φφᵀ.
+def _imu_samples(imu, start, t_end):
+    """Validated IMU samples from ``start`` up to ``t_end``: t (n,), f (n, 3), ω (n, 3), flags (n,).
 
-    A = sin θ/θ and B = (1 − cos θ)/θ² lose relative accuracy for tiny θ, but B multiplies
-    φφᵀ = O(θ²), so the result stays exact to round-off (θ = 0 gives the identity).
+    A NaN or inf is reported with its index into the full record, e.g. ``imu.angular_rate[12]``.
     """
-    th2 = np.einsum("ij,ij->i", phi, phi)
-    th = np.sqrt(th2)
-    ts = np.maximum(th, 1e-150)
-    A = np.sin(ts) / ts
-    C = np.cos(th)
-    B = (1.0 - C) / (ts * ts)
-    Ap = A[:, None] * phi
-    E = B[:, None, None] * (phi[:, :, None] * phi[:, None, :])
-    E[:, 0, 0] += C
-    E[:, 1, 1] += C
-    E[:, 2, 2] += C
-    E[:, 0, 1] -= Ap[:, 2]
-    E[:, 0, 2] += Ap[:, 1]
-    E[:, 1, 0] += Ap[:, 2]
-    E[:, 1, 2] -= Ap[:, 0]
-    E[:, 2, 0] -= Ap[:, 1]
-    E[:, 2, 1] += Ap[:, 0]
-    return E
+    for name in ("t", "specific_force", "angular_rate"):
+        if not hasattr(imu, name):
+            raise ValueError(f"imu must have t (N,), specific_force (N, 3) and angular_rate (N, 3); "
+                             f"missing {name!r}")
+    n_imu = len(np.asarray(imu.t))
+    if isinstance(start, (bool, np.bool_)) or not isinstance(start, (int, np.integer)) or not 0 <= start < n_imu:
+        raise ValueError(f"start must be an integer index into imu.t (0 ≤ start < {n_imu}), got {start!r}")
+    t = _as_finite_rows(np.asarray(imu.t, dtype=float)[start:], "imu.t", (), start)
+    f = _as_finite_rows(np.asarray(imu.specific_force, dtype=float)[start:], "imu.specific_force", (3,), start)
+    w = _as_finite_rows(np.asarray(imu.angular_rate, dtype=float)[start:], "imu.angular_rate", (3,), start)
+    if not len(f) == len(w) == len(t):
+        raise ValueError(f"imu.t, imu.specific_force and imu.angular_rate must have the same length, got "
+                         f"{n_imu}, {len(f) + start} and {len(w) + start}")
+    flags = (np.asarray(imu.interpolated, dtype=bool)[start:] if hasattr(imu, "interpolated")
+             else np.zeros(len(t), dtype=bool))
+    if flags.shape != t.shape:
+        raise ValueError(f"imu.interpolated must have shape ({n_imu},), got {np.shape(imu.interpolated)}")
+    if t_end is not None:
+        keep = t <= _as_time(t_end, "t_end")
+        t, f, w, flags = t[keep], f[keep], w[keep], flags[keep]
+    if len(t) < 2:
+        raise ValueError("the filter needs at least two IMU samples after start and up to t_end")
+    step = np.diff(t)
+    if (step <= 0.0).any():
+        k = int(np.argmax(step <= 0.0)) + 1 + start
+        raise ValueError(f"imu.t must be strictly increasing: imu.t[{k}] <= imu.t[{k - 1}]")
+    return t, f, w, flags
 
 
-def _hat_batch(v: np.ndarray) -> np.ndarray:
-    K = np.zeros((len(v), 3, 3))
-    K[:, 0, 1] = -v[:, 2]
-    K[:, 0, 2] = v[:, 1]
-    K[:, 1, 0] = v[:, 2]
-    K[:, 1, 2] = -v[:, 0]
-    K[:, 2, 0] = -v[:, 1]
-    K[:, 2, 1] = v[:, 0]
-    return K
-
-
-def _exp1(phi: np.ndarray) -> np.ndarray:
-    x, y, z = float(phi[0]), float(phi[1]), float(phi[2])
-    th2 = x * x + y * y + z * z
-    if th2 < 1e-8:
-        A, B = 1.0 - th2 / 6.0, 0.5 - th2 / 24.0
-    else:
-        th = math.sqrt(th2)
-        A, B = math.sin(th) / th, (1.0 - math.cos(th)) / th2
-    K = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-    return _I3 + A * K + B * (K @ K)
-
-
-def _log1(R: np.ndarray) -> np.ndarray:
-    """Log of one rotation whose angle is well below π (pose residuals, a few degrees)."""
-    s = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    sin_t = math.sqrt(s @ s)
-    cos_t = 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0)
-    th = math.atan2(sin_t, cos_t)
-    if th > 3.0:                       # not expected for residuals; use the robust version
-        return so3.log(R)
-    return s * (1.0 + th * th / 6.0 if th < 1e-4 else th / sin_t)
-
-
-def _left_jacobian1(phi: np.ndarray) -> np.ndarray:
-    th2 = float(phi @ phi)
-    K = np.array([[0.0, -phi[2], phi[1]], [phi[2], 0.0, -phi[0]], [-phi[1], phi[0], 0.0]])
-    if th2 < 1e-8:
-        return _I3 + 0.5 * K + (K @ K) / 6.0
-    th = math.sqrt(th2)
-    return _I3 + (1.0 - math.cos(th)) / th2 * K + (th - math.sin(th)) / (th2 * th) * (K @ K)
+def _imu_gaps(dt: np.ndarray, gap_factor) -> np.ndarray:
+    """Steps longer than ``gap_factor`` × the median step (bool (N−1,)); warns if there are any."""
+    if gap_factor is None or len(dt) == 0:
+        return np.zeros(len(dt), dtype=bool)
+    nominal = float(np.median(dt))
+    gaps = dt > gap_factor * nominal
+    if gaps.any():
+        lengths = dt[gaps]
+        warnings.warn(ImuGapWarning(
+            f"imu.t has {int(gaps.sum())} gap(s) longer than {gap_factor:g} × the median step "
+            f"({nominal * 1e3:.3g} ms): {lengths.sum():.3g} s in all, the longest {lengths.max():.3g} s. "
+            "They are propagated with the inflated interpolated_imu noise of the configuration."),
+            stacklevel=3)
+    return gaps
 
 
 def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lidar=None, gnss=None,
         start: int = 0, t_end: float | None = None, output_times=None, P0=None,
-        use_interpolation_flags: bool = True, record_all: bool = False) -> EskfResult:
+        use_interpolation_flags: bool = True, record_all: bool = False,
+        gap_factor: float | None = IMU_GAP_FACTOR) -> EskfResult:
     """Run the ESKF over an IMU record, fusing lidar poses and/or GNSS positions.
+
+    The same kernels as :class:`ESKF` (one F, one Q, one update, injection and reset): the
+    result equals calling :meth:`ESKF.predict` on every step of the merged timeline and
+    :meth:`ESKF.update_pose` / :meth:`ESKF.update_position` at every observation, to
+    round-off.
 
     Parameters
     ----------
     imu : object
-        ``t`` (N,) s, ``specific_force`` (N, 3) m/s², ``angular_rate`` (N, 3) rad/s and
-        optionally ``interpolated`` (N,) bool (for example ``load_kitti("turns").imu``).
+        ``t`` (N,) s strictly increasing, ``specific_force`` (N, 3) m/s², ``angular_rate``
+        (N, 3) rad/s, all finite, and optionally ``interpolated`` (N,) bool (for example
+        ``load_kitti("turns").imu``).
     initial : NominalState or NavState
         The state at ``imu.t[start]``.
     config : EskfConfig or str
     gravity : array_like, shape (3,)
-    lidar : object, optional
-        ``t`` (K,), ``position`` (K, 3), ``rotation`` (K, 3, 3) (for example ``ex.lidar``).
-        Observations at or before ``imu.t[start]`` or after the end are ignored.
-    gnss : object, optional
-        ``t`` (M,) and ``position`` (M, 3) (use ``position_noisy`` through a small
-        wrapper, e.g. ``types.SimpleNamespace(t=g.t, position=g.position_noisy)``).
+    lidar : PoseObservations, optional
+        Reported poses: ``t`` (K,), ``position`` (K, 3), ``rotation`` (K, 3, 3) (for example
+        ``ex.lidar``). Another object with these attributes is converted to a
+        PoseObservations, which validates it. Observations at or before ``imu.t[start]`` or
+        after the end are ignored.
+    gnss : PositionObservations, optional
+        Reported positions: ``t`` (M,), ``position`` (M, 3) (for example
+        ``ex.gnss.observations()``); converted like ``lidar``.
     start : int
         Index of the first IMU sample.
     t_end : float, optional
@@ -525,10 +883,17 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
         Extra times at which to record the state without an update (for example the truth's
         times, to evaluate a GNSS run at 10 Hz).
     P0 : array_like (15, 15), optional
+        Initial covariance, symmetric (default: from the configuration's prior).
     use_interpolation_flags : bool
         Use ``config.interpolated_density`` on IMU steps touching an interpolated sample.
     record_all : bool
         Also keep the nominal position and attitude at every timeline node.
+    gap_factor : float or None
+        An IMU step longer than ``gap_factor`` × the median step of ``imu.t`` (after
+        ``start`` and ``t_end``) is a gap: it is propagated with
+        ``config.interpolated_density`` like an interpolated span, and an
+        :class:`ImuGapWarning` gives the number and length of the gaps. None turns the
+        detection off.
 
     Returns
     -------
@@ -536,46 +901,40 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
         One row per observation or output time (after the update where there is one);
         IMU samples after the last such time are not integrated. Pass ``output_times`` to
         get states where no observation is used.
+
+    Raises
+    ------
+    ValueError
+        Naming the argument: a NaN or inf in the IMU samples (with its index) or in
+        ``gravity``, non-increasing ``imu.t``, an observation record that does not
+        validate, a non-symmetric ``P0``, a bad ``start``, ``t_end`` or ``gap_factor``.
     """
-    cfg = config if isinstance(config, EskfConfig) else load_config(config)
-    x0 = initial if isinstance(initial, NominalState) else NominalState.from_nav(initial)
-    g = as_vector(gravity, "gravity", 3)
-    t_imu = np.asarray(imu.t, dtype=float)[start:]
-    f_imu = np.asarray(imu.specific_force, dtype=float)[start:]
-    w_imu = np.asarray(imu.angular_rate, dtype=float)[start:]
-    flag_imu = (np.asarray(imu.interpolated, dtype=bool)[start:] if hasattr(imu, "interpolated")
-                else np.zeros(len(t_imu), dtype=bool))
-    if t_end is not None:
-        keep = t_imu <= t_end
-        t_imu, f_imu, w_imu, flag_imu = t_imu[keep], f_imu[keep], w_imu[keep], flag_imu[keep]
-    if len(t_imu) < 2:
-        raise ValueError("run needs at least two IMU samples after start/t_end")
-    if np.any(np.diff(t_imu) <= 0.0):
-        raise ValueError("imu.t must be strictly increasing")
+    cfg = _as_config(config)
+    x = _as_nominal(initial, "initial")
+    g = _as_gravity(gravity)
+    t_imu, f_imu, w_imu, flag_imu = _imu_samples(imu, start, t_end)
+    dt_imu = np.diff(t_imu)
+    if gap_factor is not None:
+        gap_factor = as_scalar(gap_factor, "gap_factor")
+    lidar = _as_observations(lidar, "lidar", PoseObservations)
+    gnss = _as_observations(gnss, "gnss", PositionObservations)
+    P = initial_covariance(cfg) if P0 is None else np.array(as_covariance(P0, "P0", 15))
+    use_interpolation_flags = _as_flag(use_interpolation_flags, "use_interpolation_flags")
+    record_all = _as_flag(record_all, "record_all")
+
     t0, t1 = t_imu[0], t_imu[-1]
-    step_flag = (flag_imu[:-1] | flag_imu[1:]) if use_interpolation_flags else np.zeros(len(t_imu) - 1, bool)
+    step_flag = _imu_gaps(dt_imu, gap_factor)
+    if use_interpolation_flags:
+        step_flag |= flag_imu[:-1] | flag_imu[1:]
 
     # ---- events: (time, kind, index) with kind 0 = lidar, 1 = gnss, 2 = output only ----
-    ev_t, ev_kind, ev_idx = [], [], []
-    if lidar is not None:
-        lt = np.asarray(lidar.t, dtype=float)
-        sel = np.nonzero((lt > t0) & (lt <= t1))[0]
-        ev_t.append(lt[sel]); ev_kind.append(np.zeros(len(sel), int)); ev_idx.append(sel)
-        lidar_p = np.asarray(lidar.position, dtype=float)
-        lidar_R = np.asarray(lidar.rotation, dtype=float)
-    if gnss is not None:
-        gt = np.asarray(gnss.t, dtype=float)
-        sel = np.nonzero((gt > t0) & (gt <= t1))[0]
-        ev_t.append(gt[sel]); ev_kind.append(np.ones(len(sel), int)); ev_idx.append(sel)
-        gnss_p = np.asarray(gnss.position, dtype=float)
-    if output_times is not None:
-        ot = np.asarray(output_times, dtype=float)
-        sel = np.nonzero((ot > t0) & (ot <= t1))[0]
-        ev_t.append(ot[sel]); ev_kind.append(np.full(len(sel), 2)); ev_idx.append(sel)
-    if ev_t:
-        ev_t, ev_kind, ev_idx = np.concatenate(ev_t), np.concatenate(ev_kind), np.concatenate(ev_idx)
-    else:
-        ev_t, ev_kind, ev_idx = np.zeros(0), np.zeros(0, int), np.zeros(0, int)
+    ev_t, ev_kind, ev_idx = [np.zeros(0)], [np.zeros(0, int)], [np.zeros(0, int)]
+    for kind, times in enumerate((None if lidar is None else lidar.t, None if gnss is None else gnss.t,
+                                  None if output_times is None else as_vector(output_times, "output_times"))):
+        if times is not None:
+            sel = np.nonzero((times > t0) & (times <= t1))[0]
+            ev_t.append(times[sel]), ev_kind.append(np.full(len(sel), kind)), ev_idx.append(sel)
+    ev_t, ev_kind, ev_idx = np.concatenate(ev_t), np.concatenate(ev_kind), np.concatenate(ev_idx)
     order = np.lexsort((ev_kind, ev_t))
     ev_t, ev_kind, ev_idx = ev_t[order], ev_kind[order], ev_idx[order]
 
@@ -583,154 +942,66 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
     tol = 1e-9
     pos = np.searchsorted(t_imu, ev_t)
     on_sample = (pos < len(t_imu)) & (np.abs(t_imu[np.minimum(pos, len(t_imu) - 1)] - ev_t) <= tol)
-    new_t = np.unique(ev_t[~on_sample])
-    t_nodes = np.concatenate([t_imu, new_t])
-    node_order = np.argsort(t_nodes, kind="stable")
-    t_nodes = t_nodes[node_order]
+    t_nodes = np.sort(np.concatenate([t_imu, np.unique(ev_t[~on_sample])]), kind="stable")
     f_nodes = np.column_stack([np.interp(t_nodes, t_imu, f_imu[:, i]) for i in range(3)])
     w_nodes = np.column_stack([np.interp(t_nodes, t_imu, w_imu[:, i]) for i in range(3)])
+    w_mean = 0.5 * (w_nodes[:-1] + w_nodes[1:])             # each step's mean rate
     # step j (node j → j+1) inherits the flag of the IMU interval it lies in
     imu_step = np.clip(np.searchsorted(t_imu, t_nodes[:-1], side="right") - 1, 0, len(t_imu) - 2)
     flags = step_flag[imu_step]
     dt_nodes = np.diff(t_nodes)
-    w_mid = 0.5 * (w_nodes[:-1] + w_nodes[1:])
-    # [ω̄ − b_ω]× = [ω̄]× − [b_ω]× and [f − b_a]× = [f]× − [b_a]×: the state-free parts once
-    hat_w = _hat_batch(w_mid)
-    hat_f = _hat_batch(f_nodes)
-    dt_col = dt_nodes[:, None]
-    dt_mat = dt_nodes[:, None, None]
+    q = _process_noise(np.where(flags[:, None], cfg.interpolated_density, cfg.process_density),
+                       dt_nodes, cfg.bias_model)
     ev_node = np.searchsorted(t_nodes, ev_t - tol)
 
-    # per-step diagonal of B Q Bᵀ (density² · T); bias blocks zero for a constant bias
-    dens = np.where(flags[:, None], cfg.interpolated_density[None, :], cfg.process_density[None, :])
-    if cfg.bias_model == "constant":
-        dens = dens.copy()
-        dens[:, 2:] = 0.0
-    qd = np.repeat(dens ** 2, 3, axis=1) * dt_nodes[:, None]
-    qd = np.concatenate([np.zeros((len(dt_nodes), 3)), qd], axis=1)         # δp gets none
-
-    # ---- state ----
-    p = np.array(x0.position, dtype=float)
-    v = np.array(x0.velocity, dtype=float)
-    R = np.array(x0.rotation, dtype=float)
-    ba = np.array(x0.accel_bias, dtype=float)
-    bw = np.array(x0.gyro_bias, dtype=float)
-    P = initial_covariance(cfg) if P0 is None else np.array(P0, dtype=float)
-    hat_ba, hat_bw = so3.hat(ba), so3.hat(bw)
-    R_lidar = np.diag(cfg.lidar_std ** 2)
-    R_gnss = np.eye(3) * cfg.gnss_std ** 2
-    r_lidar, r_gnss = np.diag(R_lidar).copy(), np.diag(R_gnss).copy()
-    pose_idx = np.array([0, 1, 2, 6, 7, 8])
+    R_lidar, R_gnss = _lidar_noise(cfg), _gnss_noise(cfg)
     exact = cfg.exact_reset
 
     # outputs: one row per distinct event node
-    out_nodes, first = np.unique(ev_node, return_index=True)
+    out_nodes = np.unique(ev_node)
     K_out = len(out_nodes)
-    o_t = t_nodes[out_nodes]
     o_p, o_v, o_ba, o_bw = (np.zeros((K_out, 3)) for _ in range(4))
     o_R = np.zeros((K_out, 3, 3))
     o_P = np.zeros((K_out, 15, 15))
     o_upd = np.zeros(K_out, dtype=bool)
     innovations, S_list = [], []
     if record_all:
-        all_p = np.zeros((len(t_nodes), 3)); all_R = np.zeros((len(t_nodes), 3, 3))
-        all_p[0], all_R[0] = p, R
+        all_p = np.zeros((len(t_nodes), 3))
+        all_R = np.zeros((len(t_nodes), 3, 3))
+        all_p[0], all_R[0] = x.position, x.rotation
 
-    F_template = np.tile(_I15, (int(np.max(np.diff(np.concatenate([[0], out_nodes])), initial=1)), 1, 1))
     e = 0                       # index into the sorted events
     node = 0
     for oi, target in enumerate(out_nodes):
-        # ---- propagate node → target in one vectorised segment ----
-        n = target - node
-        if n > 0:
+        if target > node:       # propagate node → target as one stack of steps
             sl = slice(node, target)
-            dt = dt_nodes[sl]
-            dtc = dt_col[sl]
-            dt3 = dt_mat[sl]
-            E = _exp_batch((w_mid[sl] - bw) * dtc)
-            Rs = np.empty((n + 1, 3, 3))
-            Rs[0] = R
-            for i in range(n):
-                Rs[i + 1] = Rs[i] @ E[i]
-            a_b = f_nodes[node:target + 1] - ba
-            acc = np.einsum("kij,kj->ki", Rs, a_b) + g
-            am = 0.5 * (acc[:-1] + acc[1:])
-            dv = am * dtc
-            vs = np.empty((n + 1, 3))
-            vs[0] = v
-            np.cumsum(dv, axis=0, out=vs[1:])
-            vs[1:] += v
-            p_new = p + np.sum((vs[:-1] + 0.5 * dv) * dtc, axis=0)
+            x, P, _, ps, Rs = _propagate(x, P, f_nodes[node:target + 1], w_mean[sl], dt_nodes[sl], q[sl],
+                                         g, cfg.bias_model)
             if record_all:
-                all_p[node + 1:target + 1] = p + np.cumsum((vs[:-1] + 0.5 * dv) * dtc, axis=0)
-                all_R[node + 1:target + 1] = Rs[1:]
-            # discrete F for each step, evaluated at the start of the step
-            Fs = F_template[:n].copy()
-            Rdt = Rs[:-1] * dt3
-            Fs[:, 0, 3] = Fs[:, 1, 4] = Fs[:, 2, 5] = dt
-            Fs[:, 3:6, 6:9] = Rdt @ (hat_ba - hat_f[sl])
-            Fs[:, 3:6, 9:12] = -Rdt
-            Fs[:, 6:9, 6:9] -= (hat_w[sl] - hat_bw) * dt3
-            Fs[:, 6, 12] = Fs[:, 7, 13] = Fs[:, 8, 14] = -dt
-            # P_n = Φ P Φᵀ + Σ_i Ψ_i Q_i Ψ_iᵀ with Ψ_i = F_{n−1} ⋯ F_{i+1} and Φ = Ψ_0 F_0: the
-            # same as n sequential steps F P Fᵀ + Q, with one matrix product per step
-            Psi = np.empty((n, 15, 15))
-            Psi[n - 1] = _I15
-            for i in range(n - 2, -1, -1):
-                np.matmul(Psi[i + 1], Fs[i + 1], out=Psi[i])
-            Phi = Psi[0] @ Fs[0]
-            Pq = (Psi * qd[sl][:, None, :]) @ np.swapaxes(Psi, 1, 2)
-            P = Phi @ P @ Phi.T + Pq.sum(axis=0)
-            P = 0.5 * (P + P.T)
-            p, v, R = p_new, vs[-1].copy(), Rs[-1]
+                all_p[node + 1:target + 1], all_R[node + 1:target + 1] = ps[1:], Rs[1:]
             node = target
-        # ---- every observation at this node ----
         updated = False
-        while e < len(ev_t) and ev_node[e] == target:
+        while e < len(ev_t) and ev_node[e] == target:       # every observation at this node
             kind, idx = ev_kind[e], ev_idx[e]
             e += 1
-            if kind == 2:
-                continue
             if kind == 0:
-                Rm = lidar_R[idx]
-                y = np.concatenate([p - lidar_p[idx], _log1(Rm.T @ R)])
-                Pc = P[:, pose_idx]
-                S = Pc[pose_idx] + R_lidar
-                K = np.linalg.solve(S, Pc.T).T
-                A = _I15.copy()
-                A[:, pose_idx] -= K
-                P = A @ P @ A.T + (K * r_lidar) @ K.T
+                y = _pose_residual(x.position, x.rotation, lidar.position[idx], lidar.rotation[idx])
+                x, P, y, S = _correct(x, P, y, POSE_G, R_lidar, exact)
+            elif kind == 1:
+                y = _position_residual(x.position, gnss.position[idx])
+                x, P, y, S = _correct(x, P, y, POSITION_G, R_gnss, exact)
             else:
-                y = p - gnss_p[idx]
-                Pc = P[:, 0:3]
-                S = Pc[0:3] + R_gnss
-                K = np.linalg.solve(S, Pc.T).T
-                A = _I15.copy()
-                A[:, 0:3] -= K
-                P = A @ P @ A.T + (K * r_gnss) @ K.T
+                continue
             innovations.append(y)
             S_list.append(S)
-            dx = K @ y
-            p = p - dx[0:3]
-            v = v - dx[3:6]
-            R = R @ _exp1(-dx[6:9])
-            ba = ba - dx[9:12]
-            bw = bw - dx[12:15]
-            hat_ba = np.array([[0.0, -ba[2], ba[1]], [ba[2], 0.0, -ba[0]], [-ba[1], ba[0], 0.0]])
-            hat_bw = np.array([[0.0, -bw[2], bw[1]], [bw[2], 0.0, -bw[0]], [-bw[1], bw[0], 0.0]])
-            if exact:
-                # G_r P G_rᵀ with G_r = I except its attitude block J: only rows/columns 6:9 change
-                J = _left_jacobian1(dx[6:9])
-                P[6:9] = J @ P[6:9]
-                P[:, 6:9] = P[:, 6:9] @ J.T
-            P = 0.5 * (P + P.T)
             updated = True
         if record_all:
-            all_p[target], all_R[target] = p, R
-        o_p[oi], o_v[oi], o_R[oi], o_ba[oi], o_bw[oi], o_P[oi] = p, v, R, ba, bw, P
+            all_p[target], all_R[target] = x.position, x.rotation
+        o_p[oi], o_v[oi], o_R[oi], o_ba[oi], o_bw[oi], o_P[oi] = (x.position, x.velocity, x.rotation,
+                                                                  x.accel_bias, x.gyro_bias, P)
         o_upd[oi] = updated
 
-    return EskfResult(o_t, o_p, o_v, o_R, o_ba, o_bw, o_P, o_upd, innovations, S_list,
+    return EskfResult(t_nodes[out_nodes], o_p, o_v, o_R, o_ba, o_bw, o_P, o_upd, innovations, S_list,
                       t_nodes if record_all else np.zeros(0),
                       all_p if record_all else np.zeros((0, 3)),
                       all_R if record_all else np.zeros((0, 3, 3)))

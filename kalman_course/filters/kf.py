@@ -16,8 +16,10 @@ The five equations:
     \\hat P_k &= (I - K_k G) \\check P_k
 
 The public functions validate their inputs (a ``ValueError`` names the argument and what
-was expected). :func:`run_kf` validates once and then runs the same equations through
-private, unvalidated kernels, so a long run costs no more per step than the maths.
+was expected; a covariance must be symmetric positive semi-definite, R and S positive
+definite). :func:`run_kf` validates once and then runs the same equations through
+private, unvalidated kernels (built on :mod:`kalman_course.core.linalg`, where each
+formula is written once), so a long run costs no more per step than the maths.
 """
 
 from __future__ import annotations
@@ -28,8 +30,9 @@ from typing import NamedTuple
 import numpy as np
 from numpy import dot
 
-from kalman_course.core.linalg import gain, innovation_covariance as _S, joseph_update, short_update, symmetrise
-from kalman_course.core.validation import as_covariance, as_matrix, as_observation_noise, as_process_noise, as_vector
+from kalman_course.core import linalg
+from kalman_course.core.validation import (as_covariance, as_flag, as_matrix, as_observation_noise,
+                                           as_process_noise, as_real_array, as_vector)
 
 __all__ = [
     "kf_predict",
@@ -103,28 +106,27 @@ class KFHistory:
 # ---------------------------------------------------------------------------------------
 
 def _predict(x_hat, P_hat, F, BQBt, v, P_out=None):
-    """x̌ = F x̂ (+ v), P̌ = F P̂ Fᵀ + B Q Bᵀ, P̌ written into ``P_out`` if given. ``np.dot``
-    because it is the fastest call numpy offers for these tiny products."""
-    x_check = dot(F, x_hat)                            # F x̂
+    """The prediction equations; returns (x̌, P̌), P̌ written into ``P_out`` if given."""
+    x_check = dot(F, x_hat)                                        # x̌ = F x̂
     if v is not None:
-        x_check += v                                   # + v
-    P_check = dot(dot(F, P_hat), F.T) + BQBt           # F P̂ Fᵀ + B Q Bᵀ
-    return x_check, symmetrise(P_check, P_out)
+        x_check += v                                               #      + v
+    P_check = linalg.predict_covariance(P_hat, F, BQBt, P_out)     # P̌ = F P̂ Fᵀ + B Q Bᵀ
+    return x_check, P_check
 
 
 def _update(x_check, P_check, y, G, CRCt, joseph, I, P_out=None):
     """The update equations; returns (x̂, P̂, innovation, S, K), P̂ written into ``P_out`` if
     given. ``I`` is the (n, n) identity, made once by the caller (``np.eye`` costs as much
     as a matrix product here)."""
-    innovation = y - dot(G, x_check)                   # e = y - G x̌
-    GP = dot(G, P_check)                               # G P̌, (m, n)
-    S = _S(GP, G, CRCt)                                # S = G P̌ Gᵀ + C R Cᵀ
-    K = gain(GP, S)                                    # K = P̌ Gᵀ S⁻¹
-    x_hat = x_check + dot(K, innovation)               # x̂ = x̌ + K e
-    if joseph:                                         # P̂ = (I - K G) P̌ (I - K G)ᵀ + K C R Cᵀ Kᵀ
-        P_hat = joseph_update(P_check, K, G, CRCt, I, P_out)
-    else:                                              # P̂ = P̌ - K G P̌
-        P_hat = short_update(P_check, K, GP, P_out)
+    innovation = y - dot(G, x_check)                               # e = y − G x̌
+    GP = dot(G, P_check)                                           # G P̌, (m, n)
+    S = linalg.innovation_covariance(GP, G, CRCt)                  # S = G P̌ Gᵀ + C R Cᵀ
+    K = linalg.gain(GP, S)                                         # K = P̌ Gᵀ S⁻¹
+    x_hat = x_check + dot(K, innovation)                           # x̂ = x̌ + K e
+    if joseph:                                   # P̂ = (I − K G) P̌ (I − K G)ᵀ + K C R Cᵀ Kᵀ
+        P_hat = linalg.joseph_update(P_check, K, G, CRCt, I, P_out)
+    else:                                        # P̂ = P̌ − K G P̌
+        P_hat = linalg.short_update(P_check, K, GP, P_out)
     return x_hat, P_hat, innovation, S, K
 
 
@@ -165,11 +167,12 @@ def kf_predict(x_hat, P_hat, F, Q, B=None, v=None):
     Raises
     ------
     ValueError
-        If a shape does not match or a covariance is not symmetric.
+        If an argument is not finite or a shape does not match, or ``P_hat`` or ``Q`` is
+        not a symmetric positive semi-definite covariance.
     """
     x_hat = as_vector(x_hat, "x_hat")
     n = x_hat.shape[0]
-    P_hat = as_covariance(P_hat, "P_hat", n)
+    P_hat = as_covariance(P_hat, "P_hat", n, psd=True)
     F = as_matrix(F, "F", (n, n))
     BQBt = as_process_noise(Q, B, n)
     if v is not None:
@@ -200,13 +203,14 @@ def innovation_covariance(P_check, G, R, C=None):
     Raises
     ------
     ValueError
-        If a shape does not match, ``P_check`` is not a symmetric covariance, or ``R`` is
-        not symmetric positive definite.
+        If an argument is not finite or a shape does not match, ``P_check`` is not a
+        symmetric positive semi-definite covariance, or ``R`` is not symmetric positive
+        definite.
     """
-    P_check = as_covariance(P_check, "P_check")
+    P_check = as_covariance(P_check, "P_check", psd=True)
     G = as_matrix(G, "G", (None, P_check.shape[0]))
     CRCt = as_observation_noise(R, C, G.shape[0])
-    return symmetrise(G @ P_check @ G.T + CRCt)
+    return linalg.symmetrise(linalg.innovation_covariance(dot(G, P_check), G, CRCt))
 
 
 def kf_gain(P_check, G, S):
@@ -234,13 +238,14 @@ def kf_gain(P_check, G, S):
     Raises
     ------
     ValueError
-        If a shape does not match, ``P_check`` is not a symmetric covariance, or ``S`` is
-        not symmetric positive definite.
+        If an argument is not finite or a shape does not match, ``P_check`` is not a
+        symmetric positive semi-definite covariance, or ``S`` is not symmetric positive
+        definite.
     """
-    P_check = as_covariance(P_check, "P_check")
+    P_check = as_covariance(P_check, "P_check", psd=True)
     G = as_matrix(G, "G", (None, P_check.shape[0]))
     S = as_covariance(S, "S", G.shape[0], positive_definite=True)
-    return gain(G @ P_check, S)
+    return linalg.gain(dot(G, P_check), S)
 
 
 def kf_update(x_check, P_check, y, G, R, C=None, joseph=False):
@@ -282,17 +287,19 @@ def kf_update(x_check, P_check, y, G, R, C=None, joseph=False):
     Raises
     ------
     ValueError
-        If a shape does not match, ``P_check`` is not a symmetric covariance, or ``R`` is
-        not symmetric positive definite.
+        If an argument is not finite or a shape does not match (``y`` fixes m),
+        ``P_check`` is not a symmetric positive semi-definite covariance, ``R`` is not
+        symmetric positive definite, or ``joseph`` is not a bool.
     """
     x_check = as_vector(x_check, "x_check")
     n = x_check.shape[0]
-    P_check = as_covariance(P_check, "P_check", n)
+    P_check = as_covariance(P_check, "P_check", n, psd=True)
     y = as_vector(y, "y")
     m = y.shape[0]
     G = as_matrix(G, "G", (m, n))
     CRCt = as_observation_noise(R, C, m)
-    return KFUpdate(*_update(x_check, P_check, y, G, CRCt, bool(joseph), np.eye(n)))
+    joseph = as_flag(joseph, "joseph")
+    return KFUpdate(*_update(x_check, P_check, y, G, CRCt, joseph, np.eye(n)))
 
 
 # ---------------------------------------------------------------------------------------
@@ -344,35 +351,29 @@ def run_kf(x0, P0, F, Q, G, R, ys, *, B=None, vs=None, joseph=False):
     Raises
     ------
     ValueError
-        If a shape does not match, a covariance is not symmetric (R: not positive
-        definite), ``ys`` has a row that is only partly NaN or holds inf, or ``vs`` is not
-        finite.
+        If an argument is not finite or a shape does not match, ``P0`` or ``Q`` is not a
+        symmetric positive semi-definite covariance, ``R`` is not symmetric positive
+        definite, ``ys`` has a row that is only partly NaN or holds inf, or ``joseph`` is
+        not a bool.
     """
     x0 = as_vector(x0, "x0")
     n = x0.shape[0]
-    P0 = as_covariance(P0, "P0", n)
+    P0 = as_covariance(P0, "P0", n, psd=True)
     F = as_matrix(F, "F", (n, n))
     BQBt = as_process_noise(Q, B, n)
     G = as_matrix(G, "G", (None, n))
     m = G.shape[0]
     CRCt = as_observation_noise(R, None, m)
-
-    ys = np.asarray(ys, dtype=float)
-    if ys.ndim != 2 or ys.shape[1] != m:
-        hint = "; reshape a 1-D series with ys[:, None]" if ys.ndim == 1 and m == 1 else ""
-        raise ValueError(f"ys must have shape (N, {m}) (one measurement row per step), "
-                         f"got {ys.shape}{hint}")
+    ys = as_real_array(ys, "ys")
+    if ys.ndim == 1 and m == 1:
+        raise ValueError(f"ys must have shape (N, 1), one measurement row per step, got "
+                         f"shape {ys.shape}; reshape a 1-D series with ys[:, None]")
+    ys = as_matrix(ys, "ys", ("N", m), missing_rows=True)
     N = ys.shape[0]
-    missing = np.isnan(ys)
-    measured = ~np.all(missing, axis=1)
-    partial = np.any(missing, axis=1) & measured
-    if np.any(partial):
-        raise ValueError(f"ys rows must be all finite or all NaN (missing); "
-                         f"row {int(np.argmax(partial))} is only partly NaN")
-    if np.any(np.isinf(ys)):
-        raise ValueError("ys must not contain inf")
+    measured = ~np.isnan(ys[:, 0])                    # rows are all NaN or all finite
     if vs is not None:
         vs = as_matrix(vs, "vs", (N, n))
+    joseph = as_flag(joseph, "joseph")
 
     x_check = np.empty((N, n))
     P_check = np.empty((N, n, n))
@@ -383,7 +384,6 @@ def run_kf(x0, P0, F, Q, G, R, ys, *, B=None, vs=None, joseph=False):
     K = np.full((N, n, m), np.nan)
     rows = list(ys)
     inputs = [None] * N if vs is None else list(vs)
-    joseph = bool(joseph)
     I = np.eye(n)
 
     # The covariances are symmetrised straight into their history rows (saves a copy per

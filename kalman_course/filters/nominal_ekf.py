@@ -25,14 +25,17 @@ none of these problems.
 from __future__ import annotations
 
 import functools
-import math
 from dataclasses import dataclass
 
 import numpy as np
 import sympy as sp
 
 from kalman_course.core import so3
-from kalman_course.filters.eskf_config import EskfConfig, load_config
+from kalman_course.core.linalg import gain, innovation_covariance, joseph_update, symmetrise
+from kalman_course.core.observations import PoseObservations
+from kalman_course.core.validation import as_scalar, as_vector
+# the ESKF's argument checks, so that both filters accept and reject the same inputs
+from kalman_course.filters.eskf import _as_config, _as_gravity, _as_nominal, _as_observations, _imu_samples
 
 __all__ = ["rotate_jacobian", "quat_xi", "quat_omega", "continuous_jacobian", "noise_jacobian", "propagate",
            "NominalEkfResult", "run_nominal_ekf", "REGULARISER"]
@@ -55,61 +58,50 @@ def _rotate_jacobian_fn():
 
 
 def rotate_jacobian(q, a) -> np.ndarray:
-    """∂(R(q) a)/∂q (3, 4) for q = (w, x, y, z) (from SymPy)."""
-    return np.asarray(_rotate_jacobian_fn()(*np.asarray(q, dtype=float), *np.asarray(a, dtype=float)), dtype=float)
+    """∂(R(q) a)/∂q (3, 4) for q = (w, x, y, z) (4,) and a vector a (3,) (from SymPy)."""
+    q, a = _as_quaternion(q), as_vector(a, "a", 3)
+    return np.asarray(_rotate_jacobian_fn()(*q, *a), dtype=float)
 
 
-def _q2R(q) -> np.ndarray:
-    """Rotation matrix of a unit quaternion (w, x, y, z), without validation."""
-    w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
-def _qmul(p, q) -> np.ndarray:
-    pw, px, py, pz = p
-    qw, qx, qy, qz = q
-    return np.array([pw * qw - px * qx - py * qy - pz * qz, pw * qx + px * qw + py * qz - pz * qy,
-                     pw * qy - px * qz + py * qw + pz * qx, pw * qz + px * qy - py * qx + pz * qw])
-
-
-def _qexp(phi) -> np.ndarray:
-    th = math.sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
-    k = 0.5 - th * th / 48.0 if th < 1e-6 else math.sin(0.5 * th) / th
-    return np.array([math.cos(0.5 * th), k * phi[0], k * phi[1], k * phi[2]])
+def _as_quaternion(q, name: str = "q") -> np.ndarray:
+    """``q`` as a finite, non-zero quaternion (w, x, y, z), shape (4,)."""
+    q = as_vector(q, name, 4)
+    if not q.any():
+        raise ValueError(f"{name} must be a non-zero quaternion (w, x, y, z), got {q}")
+    return q
 
 
 def quat_xi(q) -> np.ndarray:
-    """Ξ(q) (4, 3) with q ⊗ (0, v) = Ξ(q) v."""
-    w, x, y, z = np.asarray(q, dtype=float)
+    """Ξ(q) (4, 3) with q ⊗ (0, v) = Ξ(q) v, for q (4,)."""
+    w, x, y, z = as_vector(q, "q", 4)
     return np.array([[-x, -y, -z], [w, -z, y], [z, w, -x], [-y, x, w]])
 
 
 def quat_omega(v) -> np.ndarray:
-    """Ω(v) (4, 4) with q ⊗ (0, v) = Ω(v) q."""
-    x, y, z = v
+    """Ω(v) (4, 4) with q ⊗ (0, v) = Ω(v) q, for v (3,)."""
+    x, y, z = as_vector(v, "v", 3)
     return np.array([[0.0, -x, -y, -z], [x, 0.0, z, -y], [y, -z, 0.0, x], [z, y, -x, 0.0]])
 
 
 def continuous_jacobian(q, f, w, b_a, b_w) -> np.ndarray:
-    """A = ∂ẋ/∂x (16, 16) of the nominal-state model at q, readings f, ω and biases."""
-    q = np.asarray(q, dtype=float)
-    a = np.asarray(f, dtype=float) - np.asarray(b_a, dtype=float)
-    om = np.asarray(w, dtype=float) - np.asarray(b_w, dtype=float)
+    """A = ∂ẋ/∂x (16, 16) of the nominal-state model at q (4,), readings f, ω (3,) and biases (3,)."""
+    q = _as_quaternion(q)
+    a = as_vector(f, "f", 3) - as_vector(b_a, "b_a", 3)
+    om = as_vector(w, "w", 3) - as_vector(b_w, "b_w", 3)
     A = np.zeros((16, 16))
     A[0:3, 3:6] = np.eye(3)
     A[3:6, 6:10] = rotate_jacobian(q, a)
-    A[3:6, 10:13] = -_q2R(q / np.linalg.norm(q))
+    A[3:6, 10:13] = -so3.quat_to_matrix(q)
     A[6:10, 6:10] = 0.5 * quat_omega(om)
     A[6:10, 13:16] = -0.5 * quat_xi(q)
     return A
 
 
 def noise_jacobian(q) -> np.ndarray:
-    """B (16, 12): columns n_a, n_ω, n_ba, n_bω."""
+    """B (16, 12) at q (4,): columns n_a, n_ω, n_ba, n_bω."""
+    q = _as_quaternion(q)
     B = np.zeros((16, 12))
-    B[3:6, 0:3] = _q2R(q / np.linalg.norm(q))
+    B[3:6, 0:3] = so3.quat_to_matrix(q)
     B[6:10, 3:6] = 0.5 * quat_xi(q)
     B[10:13, 6:9] = np.eye(3)
     B[13:16, 9:12] = np.eye(3)
@@ -117,12 +109,19 @@ def noise_jacobian(q) -> np.ndarray:
 
 
 def propagate(x: np.ndarray, f0, w0, f1, w1, dt: float, g) -> np.ndarray:
-    """One midpoint step of the nominal state x (16,); q is renormalised."""
-    p, v, q, b_a, b_w = x[0:3], x[3:6], x[6:10], x[10:13], x[13:16]
-    q1 = _qmul(q, _qexp((0.5 * (np.asarray(w0) + np.asarray(w1)) - b_w) * dt))
-    q1 = q1 / np.linalg.norm(q1)
-    a0 = _q2R(q) @ (np.asarray(f0) - b_a) + g
-    a1 = _q2R(q1) @ (np.asarray(f1) - b_a) + g
+    """One midpoint step of the nominal state x (16,); q is renormalised.
+
+    ``f0``, ``w0``, ``f1``, ``w1`` (3,) are the readings at the start and end of the step,
+    ``dt`` its length (s, > 0) and ``g`` (3,) gravity.
+    """
+    x = as_vector(x, "x", 16)
+    p, v, q, b_a, b_w = x[0:3], x[3:6], _as_quaternion(x[6:10], "x[6:10]"), x[10:13], x[13:16]
+    f0, f1 = as_vector(f0, "f0", 3), as_vector(f1, "f1", 3)
+    w0, w1 = as_vector(w0, "w0", 3), as_vector(w1, "w1", 3)
+    dt, g = as_scalar(dt, "dt"), as_vector(g, "g", 3)
+    q1 = so3.quat_normalise(so3.quat_multiply(q, so3.quat_exp((0.5 * (w0 + w1) - b_w) * dt)))
+    a0 = so3.quat_to_matrix(q) @ (f0 - b_a) + g
+    a1 = so3.quat_to_matrix(q1) @ (f1 - b_a) + g
     am = 0.5 * (a0 + a1)
     return np.concatenate([p + v * dt + 0.5 * am * dt * dt, v + am * dt, q1, b_a, b_w])
 
@@ -158,15 +157,15 @@ def run_nominal_ekf(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.80
     an observation between two IMU samples is handled the same way (interpolated reading,
     exact propagation to its time). Biases follow random walks.
     """
-    cfg = config if isinstance(config, EskfConfig) else load_config(config)
-    g = np.asarray(gravity, dtype=float)
-    t_imu = np.asarray(imu.t, dtype=float)
-    f_imu = np.asarray(imu.specific_force, dtype=float)
-    w_imu = np.asarray(imu.angular_rate, dtype=float)
+    cfg = _as_config(config)
+    initial = _as_nominal(initial, "initial")
+    g = _as_gravity(gravity)
+    t_imu, f_imu, w_imu, _ = _imu_samples(imu, start, t_end)
+    lidar = _as_observations(lidar, "lidar", PoseObservations)
     dens = cfg.process_density
     prior = cfg.prior_std
-    q0 = so3.matrix_to_quat(np.asarray(initial.rotation, dtype=float))
-    x = np.concatenate([initial.position, initial.velocity, q0, np.zeros(6)]).astype(float)
+    q0 = so3.matrix_to_quat(initial.rotation)
+    x = np.concatenate([initial.position, initial.velocity, q0, np.zeros(6)])
     Xi = quat_xi(q0)
     P = np.zeros((16, 16))
     P[0:6, 0:6] = np.diag(prior[0:6] ** 2)
@@ -176,23 +175,21 @@ def run_nominal_ekf(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.80
     G = np.zeros((7, 16))
     G[0:3, 0:3] = np.eye(3)
     G[3:7, 6:10] = np.eye(4)
+    I16 = np.eye(16)
 
     dens_cols = np.repeat(dens, 3)             # B Q Bᵀ = T · (B_t diag(σ²) B_tᵀ) with the T / √T scaling
 
     def predict(x, P, f0, w0, f1, w1, dt):
         A = continuous_jacobian(x[6:10], f0, 0.5 * (w0 + w1), x[10:13], x[13:16])
-        F = np.eye(16) + A * dt
+        F = I16 + A * dt
         Bs = noise_jacobian(x[6:10]) * dens_cols
-        P = F @ P @ F.T + dt * (Bs @ Bs.T)
-        return propagate(x, f0, w0, f1, w1, dt, g), 0.5 * (P + P.T)
+        return propagate(x, f0, w0, f1, w1, dt, g), symmetrise(F @ P @ F.T + dt * (Bs @ Bs.T))
 
-    t, f, w = t_imu[start], f_imu[start], w_imu[start]
-    lt = np.asarray(lidar.t, dtype=float)
+    t, f, w = t_imu[0], f_imu[0], w_imu[0]
+    lt = lidar.t
     j = int(np.searchsorted(lt, t, side="right"))
     out = []
-    for k in range(start + 1, len(t_imu)):
-        if t_end is not None and t_imu[k] > t_end:
-            break
+    for k in range(1, len(t_imu)):
         while j < len(lt) and lt[j] <= t_imu[k]:
             s = (lt[j] - t_imu[k - 1]) / (t_imu[k] - t_imu[k - 1])
             f_j = (1 - s) * f_imu[k - 1] + s * f_imu[k]
@@ -201,26 +198,24 @@ def run_nominal_ekf(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.80
                 x, P = predict(x, P, f, w, f_j, w_j, lt[j] - t)
                 t, f, w = lt[j], f_j, w_j
             q = x[6:10]
-            q_m = so3.matrix_to_quat(np.asarray(lidar.rotation[j], dtype=float))
+            q_m = so3.matrix_to_quat(lidar.rotation[j])
             if q_m @ q < 0.0:
                 q_m = -q_m
-            y = np.concatenate([np.asarray(lidar.position[j], dtype=float), q_m])
+            y = np.concatenate([lidar.position[j], q_m])
             Xi = quat_xi(q)
             Rn = np.zeros((7, 7))
             Rn[0:3, 0:3] = np.eye(3) * sp_ ** 2
             Rn[3:7, 3:7] = 0.25 * sa_ ** 2 * Xi @ Xi.T + REGULARISER * np.eye(4)
-            S = G @ P @ G.T + Rn
-            K = np.linalg.solve(S, G @ P).T
+            GP = G @ P
+            K = gain(GP, innovation_covariance(GP, G, Rn))
             x = x + K @ (y - G @ x)
-            I_KG = np.eye(16) - K @ G
-            P = I_KG @ P @ I_KG.T + K @ Rn @ K.T
+            P = joseph_update(P, K, G, Rn, I16)
             # back onto the unit sphere, and the covariance with it
             nq = np.linalg.norm(x[6:10])
             x[6:10] /= nq
             N = np.eye(16)
             N[6:10, 6:10] = (np.eye(4) - np.outer(x[6:10], x[6:10])) / nq
-            P = N @ P @ N.T
-            P = 0.5 * (P + P.T)
+            P = symmetrise(N @ P @ N.T)
             out.append((t, x.copy(), P.copy()))
             j += 1
         if t_imu[k] > t:

@@ -1,6 +1,6 @@
 """SymPy derivations behind the ESKF of chapter 08 (convention: error = nominal − true).
 
-Three :class:`~kalman_course.symbolic.Derivation` objects, each proved by ``verify()``:
+Three :class:`~kalman_course.symbolic.equations.Derivation` objects, each proved by ``verify()``:
 
 :func:`eskf_error_dynamics`
     The continuous error dynamics, obtained by linearising the difference between the
@@ -23,20 +23,22 @@ Three :class:`~kalman_course.symbolic.Derivation` objects, each proved by ``veri
 with :func:`error_dynamics_function` turning F_t into a numpy function (``lambdify``) that
 the tests compare with :func:`kalman_course.filters.eskf.error_dynamics`.
 
-:func:`kalman_course.symbolic.derivations` lists them after the core derivations, so the
-course's export includes them.
+:func:`kalman_course.symbolic.derivations` lists them last (this module is the last topic of
+:mod:`kalman_course.symbolic.registry`), so the course's export includes them.
 """
 
 from __future__ import annotations
 
 import functools
 
+import numpy as np
 import sympy as sp
 
-from kalman_course.symbolic import Derivation, Equation, symbol_matrix
+from kalman_course.core.validation import as_matrix, as_vector
+from kalman_course.symbolic.equations import Derivation, Equation, derivation_builder, symbol_matrix
+from kalman_course.symbolic.numeric import lambdify_matrix
 
-__all__ = ["eskf_error_dynamics", "eskf_discretisation", "eskf_reset", "error_dynamics_function",
-           "skew", "BUILDERS"]
+__all__ = ["eskf_error_dynamics", "eskf_discretisation", "eskf_reset", "error_dynamics_function", "skew"]
 
 
 def skew(v) -> sp.Matrix:
@@ -58,7 +60,7 @@ def _vec(name: str) -> sp.Matrix:
     return symbol_matrix(name, 3, 1)
 
 
-@functools.lru_cache(maxsize=None)
+@derivation_builder
 def eskf_error_dynamics() -> Derivation:
     """δv̇ and δθ̇ by first-order expansion; F_t and B_t assembled from the derived rows."""
     eps = sp.Symbol("epsilon")
@@ -158,7 +160,7 @@ def eskf_error_dynamics() -> Derivation:
     )
 
 
-@functools.lru_cache(maxsize=None)
+@derivation_builder
 def eskf_discretisation() -> Derivation:
     """B Q_k Bᵀ = T B_t Q_c B_tᵀ, and the per-axis δp–δv block of the exact integral."""
     T, s = sp.symbols("T s", positive=True)
@@ -206,7 +208,7 @@ def eskf_discretisation() -> Derivation:
     )
 
 
-@functools.lru_cache(maxsize=None)
+@derivation_builder
 def eskf_reset() -> Derivation:
     """The reset Jacobian's attitude block for error = nominal − true."""
     eps, lam = sp.symbols("epsilon lambda")
@@ -247,24 +249,24 @@ def eskf_reset() -> Derivation:
     )
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def error_dynamics_function():
-    """numpy function ``F_t(R, f, omega_m, b_a, b_omega)`` (R (3, 3), others (3,)) from the SymPy F_t."""
+    """The SymPy F_t of :func:`eskf_error_dynamics` as a numpy function (lambdified once).
+
+    Returns
+    -------
+    callable
+        ``F_t(R, f, omega_m, b_a, b_omega)`` with the attitude R of shape (3, 3) and the
+        specific force f (m/s²), the angular rate omega_m (rad/s) and the biases b_a, b_omega
+        of shape (3,); returns F_t of shape (15, 15).
+    """
     d = eskf_error_dynamics()
-    F = d.results["F_t"]
-    syms = [d.symbols[k] for k in ("R", "f", "omega_m", "b_a", "b_omega")]
-    flat = [list(m) for m in syms]
-    fn = sp.lambdify([x for group in flat for x in group], F, modules="numpy")
+    names = ("R", "f", "omega_m", "b_a", "b_omega")
+    fn = lambdify_matrix([x for name in names for x in d.symbols[name]], d.results["F_t"])
 
     def F_t(R, f, omega_m, b_a, b_omega):
-        import numpy as np
-        args = [*np.asarray(R, dtype=float).ravel(), *np.asarray(f, dtype=float),
-                *np.asarray(omega_m, dtype=float), *np.asarray(b_a, dtype=float),
-                *np.asarray(b_omega, dtype=float)]
-        return np.asarray(fn(*args), dtype=float)
+        R = as_matrix(R, "R", (3, 3))
+        vectors = [as_vector(v, name, 3) for v, name in zip((f, omega_m, b_a, b_omega), names[1:])]
+        return np.asarray(fn(*R.ravel(), *np.concatenate(vectors)), dtype=float)
 
     return F_t
-
-
-#: The builders, in reading order; :func:`kalman_course.symbolic.derivations` registers them.
-BUILDERS = (eskf_error_dynamics, eskf_discretisation, eskf_reset)

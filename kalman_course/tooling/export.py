@@ -23,10 +23,14 @@ KIND_NOTE = {
 
 
 def all_derivations() -> dict:
-    """Every derivation of the course, in course order (core, motion models, ESKF)."""
-    from kalman_course import symbolic
+    """Every derivation of the course, keyed by name, in course order (the symbolic registry).
 
-    return symbolic.derivations()
+    SymPy is imported here, not with this module, so that exporting the lectures does not
+    load it.
+    """
+    from kalman_course.symbolic import registry
+
+    return registry.derivations()
 
 
 def equation_label(derivation_name: str, label: str) -> str:

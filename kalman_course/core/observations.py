@@ -1,0 +1,266 @@
+"""Observation records: what a sensor reported, and when.
+
+Filters take their measurements as one of these records, never as the data set objects
+that also carry the ground truth. A record holds the values the sensor reported (with
+its noise), so the noise-free solution cannot reach a filter by accident.
+
+- :class:`PositionObservations` — times ``t`` (K,) and positions (K, 3), e.g. GNSS fixes.
+- :class:`PoseObservations` — the same plus attitudes ``rotation`` (K, 3, 3), e.g. lidar
+  map matching. It is a :class:`PositionObservations`, so a function that only needs the
+  positions accepts it too.
+
+Both are frozen and validate on construction: times finite and strictly increasing,
+values finite, rotations orthonormal with det +1 to within :data:`ROTATION_TOL`. An
+error names the field and the first bad row, for example ``ValueError: position[17] is
+NaN``. The arrays are read-only float64 copies, so a record cannot change after it has
+been checked.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["PositionObservations", "PoseObservations", "ROTATION_TOL", "as_rotation"]
+
+#: Largest accepted max-abs entry of RᵀR − I for a measured rotation. Rotations stored with
+#: float64 round-off are ~1e-15 off; 1e-6 also admits matrices rebuilt from quaternions
+#: printed with single-precision digits, and rejects anything that is not a rotation.
+ROTATION_TOL = 1e-6
+
+
+def _readonly(arr: np.ndarray) -> np.ndarray:
+    """Return a float64 copy of ``arr`` that cannot be written to."""
+    out = np.array(arr, dtype=np.float64, copy=True)
+    out.setflags(write=False)
+    return out
+
+
+def _first_nonfinite(name: str, arr: np.ndarray) -> None:
+    """Raise ValueError naming the first row of ``arr`` that holds a NaN or an inf."""
+    finite = np.isfinite(arr)
+    bad = ~finite.all(axis=tuple(range(1, arr.ndim))) if arr.ndim > 1 else ~finite
+    if bad.any():
+        k = int(np.argmax(bad))
+        kind = "NaN" if np.isnan(arr[k]).any() else "inf"
+        raise ValueError(f"{name}[{k}] is {kind}")
+
+
+def _as_times(t) -> np.ndarray:
+    """Return ``t`` as a finite, strictly increasing float64 vector (K,)."""
+    try:
+        arr = np.asarray(t, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"t must be a 1-D array of times in seconds, got {t!r}") from None
+    if arr.ndim != 1:
+        raise ValueError(f"t must be a 1-D array of shape (K,), got shape {arr.shape}")
+    _first_nonfinite("t", arr)
+    step = np.diff(arr)
+    if (step <= 0.0).any():
+        k = int(np.argmax(step <= 0.0)) + 1
+        raise ValueError(f"t must be strictly increasing: t[{k}] = {arr[k]:g} <= "
+                         f"t[{k - 1}] = {arr[k - 1]:g}")
+    return arr
+
+
+def _as_rows(value, name: str, tail: tuple[int, ...], K: int) -> np.ndarray:
+    """Return ``value`` as a finite float64 array of shape (K, *tail)."""
+    want = "(" + ", ".join([f"K={K}", *map(str, tail)]) + ")"
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a numeric array of shape {want}") from None
+    if arr.shape != (K, *tail):
+        raise ValueError(f"{name} must have shape {want}, one row per time in t, "
+                         f"got shape {arr.shape}")
+    _first_nonfinite(name, arr)
+    return arr
+
+
+def _check_rotations(R: np.ndarray, name: str) -> None:
+    """Raise ValueError naming the first matrix of ``R`` (..., 3, 3) that is not in SO(3).
+
+    ``name`` is the label of the whole stack; the message appends the index of the bad
+    matrix (``rotation[3]``), or nothing for a single (3, 3) matrix.
+    """
+    stack = R.reshape(-1, 3, 3)
+    if stack.shape[0] == 0:
+        return
+
+    def label(k: int) -> str:
+        return name if R.ndim == 2 else f"{name}[{k}]"
+
+    error = np.abs(np.swapaxes(stack, -1, -2) @ stack - np.eye(3)).max(axis=(-2, -1))
+    bad = error > ROTATION_TOL
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise ValueError(f"{label(k)} is not a rotation matrix "
+                         f"(|RᵀR − I| = {error[k]:.3g}, tolerance {ROTATION_TOL:g})")
+    det = np.linalg.det(stack)
+    if (det <= 0.0).any():
+        k = int(np.argmax(det <= 0.0))
+        raise ValueError(f"{label(k)} is a reflection, not a rotation (det = {det[k]:.3g}, "
+                         "expected +1)")
+
+
+def as_rotation(value, name: str) -> np.ndarray:
+    """Return ``value`` as a (3, 3) float64 rotation matrix, checked as the records check theirs.
+
+    For a single measured attitude handed to a filter step (e.g. a pose update).
+
+    Parameters
+    ----------
+    value : array_like, shape (3, 3)
+        The matrix.
+    name : str
+        The argument's name, used in the error message.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, 3)
+
+    Raises
+    ------
+    ValueError
+        If ``value`` is not a finite 3 × 3 matrix with max |RᵀR − I| ≤ :data:`ROTATION_TOL`
+        and det +1, e.g. ``R_obs is not a rotation matrix (|RᵀR − I| = 0.21, ...)``.
+    """
+    try:
+        R = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a 3 x 3 rotation matrix, got {value!r}") from None
+    if R.shape != (3, 3):
+        raise ValueError(f"{name} must be a 3 x 3 rotation matrix, got shape {R.shape}")
+    if not np.isfinite(R).all():
+        raise ValueError(f"{name} must be finite, got NaN or inf")
+    _check_rotations(R, name)
+    return R
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class PositionObservations:
+    """Positions reported by a sensor (e.g. GNSS fixes), in the navigation frame.
+
+    Parameters
+    ----------
+    t : array_like, shape (K,)
+        Observation times, s; finite and strictly increasing.
+    position : array_like, shape (K, 3)
+        Reported position at each time, navigation frame, m; finite. These are the
+        sensor's values including its noise, not a ground-truth solution.
+
+    Attributes
+    ----------
+    t : numpy.ndarray, shape (K,)
+        Read-only float64 copy of ``t``.
+    position : numpy.ndarray, shape (K, 3)
+        Read-only float64 copy of ``position``.
+
+    Raises
+    ------
+    ValueError
+        If a field has the wrong shape, holds a NaN or an inf (the message names the first
+        bad row, e.g. ``position[17] is NaN``), or ``t`` does not strictly increase.
+
+    Examples
+    --------
+    >>> obs = PositionObservations([0.0, 1.0], [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    >>> len(obs), obs.position[1, 0]
+    (2, 1.0)
+    """
+
+    t: np.ndarray
+    position: np.ndarray
+
+    def __post_init__(self) -> None:
+        t = _as_times(self.t)
+        position = _as_rows(self.position, "position", (3,), t.shape[0])
+        object.__setattr__(self, "t", _readonly(t))
+        object.__setattr__(self, "position", _readonly(position))
+
+    def __len__(self) -> int:
+        """Number of observations K."""
+        return int(self.t.shape[0])
+
+    def __repr__(self) -> str:
+        if len(self) == 0:
+            return f"{type(self).__name__}(K=0)"
+        return (f"{type(self).__name__}(K={len(self)}, "
+                f"t=[{self.t[0]:g} … {self.t[-1]:g}] s)")
+
+    def select(self, which) -> "PositionObservations":
+        """Return the observations picked by ``which``, as a record of the same type.
+
+        Parameters
+        ----------
+        which : slice, array_like of bool, shape (K,), or array_like of int
+            Rows to keep: a slice, a boolean mask over the K observations, or increasing
+            row indices. For example ``gnss.select((gnss.t < 100) | (gnss.t > 130))``
+            removes the fixes of a 30 s outage.
+
+        Returns
+        -------
+        PositionObservations or PoseObservations
+            A new, validated record (``type(self)``) holding the selected rows. Fields of
+            a subclass that are not one row per observation (e.g. a noise level) are kept.
+
+        Raises
+        ------
+        ValueError
+            If a boolean mask does not have shape (K,), or the indices would put the times
+            out of order.
+        """
+        if not isinstance(which, slice):
+            which = np.asarray(which)
+            if which.dtype == bool and which.shape != (len(self),):
+                raise ValueError(f"which must be a boolean mask of shape ({len(self)},), "
+                                 f"got shape {which.shape}")
+        K = len(self)
+        fields = {}
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            per_row = isinstance(value, np.ndarray) and value.ndim >= 1 and value.shape[0] == K
+            fields[f.name] = value[which] if per_row else value    # e.g. a subclass's noise level
+        return type(self)(**fields)
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class PoseObservations(PositionObservations):
+    """Poses reported by a sensor (e.g. lidar map matching): position and attitude.
+
+    Parameters
+    ----------
+    t : array_like, shape (K,)
+        Observation times, s; finite and strictly increasing.
+    position : array_like, shape (K, 3)
+        Reported position, navigation frame, m; finite.
+    rotation : array_like, shape (K, 3, 3)
+        Reported attitude R_nb (body to navigation frame); each matrix orthonormal with
+        det +1, max |RᵀR − I| ≤ :data:`ROTATION_TOL`.
+
+    Attributes
+    ----------
+    t : numpy.ndarray, shape (K,)
+        Read-only float64 copy of ``t``.
+    position : numpy.ndarray, shape (K, 3)
+        Read-only float64 copy of ``position``.
+    rotation : numpy.ndarray, shape (K, 3, 3)
+        Read-only float64 copy of ``rotation``.
+
+    Raises
+    ------
+    ValueError
+        As :class:`PositionObservations`, and if a rotation is not orthonormal
+        (``rotation[3] is not a rotation matrix (|RᵀR − I| = 0.2, ...)``) or is a
+        reflection.
+    """
+
+    rotation: np.ndarray
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        rotation = _as_rows(self.rotation, "rotation", (3, 3), len(self))
+        _check_rotations(rotation, "rotation")
+        object.__setattr__(self, "rotation", _readonly(rotation))

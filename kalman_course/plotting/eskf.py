@@ -1,0 +1,278 @@
+"""Chapter 08 figures: the error-state Kalman filter on KITTI.
+
+Each function builds one whole figure of the lecture from arrays (or, for
+:func:`plot_bias_sigmas`, from filter results), so that a lecture cell is one call and
+``plt.show()``. Angles come in radians and are drawn in degrees; gyroscope biases are
+drawn in deg/h. The ESKF's error state is ordered [δp, δv, δθ, δb_a, δb_ω] (15), so its
+standard deviations ``std`` (N, 15) have position in columns 0–2, attitude in 6–8, the
+accelerometer bias in 9–11 and the gyroscope bias in 12–14.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kalman_course.plotting.vocabulary import (CURVE_COLORS, _vector, plot_curves,
+                                               plot_error_with_band, plot_track, shade_spans)
+
+__all__ = ["plot_track_with_zoom", "plot_pose_errors", "plot_bias_estimates", "plot_bias_sigmas",
+           "plot_outage_error", "plot_error_norms"]
+
+_AXES = "xyz"
+_RAD_PER_S_TO_DEG_PER_H = np.rad2deg(1.0) * 3600.0
+
+
+def _rows(value, name: str, n: int, columns: int) -> np.ndarray:
+    """``value`` as a finite float array of shape (n, >= columns)."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a numeric array of shape ({n}, {columns})") from None
+    if arr.ndim != 2 or arr.shape[0] != n or arr.shape[1] < columns:
+        raise ValueError(f"{name} must have shape ({n}, {columns}) (one row per time in t), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite")
+    return arr
+
+
+def plot_track_with_zoom(truth_xy, estimate_xy, measured_xy=None, *, zoom, title="", zoom_title="zoom",
+                         estimate_label="ESKF", measured_label="lidar poses", figsize=(13, 5)):
+    """The path from above, whole and zoomed: truth, measured positions and the estimate.
+
+    Parameters
+    ----------
+    truth_xy : array_like, shape (N, 2) or (N, 3)
+        True positions (east, north[, up]), m.
+    estimate_xy : array_like, shape (M, 2) or (M, 3)
+        The filter's positions, m.
+    measured_xy : array_like, shape (L, 2) or (L, 3), optional
+        Measured positions, m.
+    zoom : ((float, float), (float, float))
+        (east limits, north limits) of the right panel, m.
+    title, zoom_title : str
+        Titles of the left (whole) and right (zoomed) panels.
+    estimate_label, measured_label : str
+        Legend labels.
+    figsize : tuple
+        Figure size.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Two panels; the legend is on the zoomed one.
+    """
+    import matplotlib.pyplot as plt
+
+    try:
+        (x0, x1), (y0, y1) = zoom
+        x0, x1, y0, y1 = (float(v) for v in (x0, x1, y0, y1))
+    except (TypeError, ValueError):
+        raise ValueError(f"zoom must be ((east_min, east_max), (north_min, north_max)), got {zoom!r}") from None
+    if not (x0 < x1 and y0 < y1):
+        raise ValueError(f"zoom limits must increase, got {zoom!r}")
+    fig, axes = plt.subplots(1, 2, figsize=figsize)
+    for ax in axes:
+        plot_track(ax, truth_xy, estimate_xy, measured_xy, estimate_label=estimate_label,
+                   measured_label=measured_label)
+        ax.set(xlabel="east [m]", ylabel="north [m]")
+    axes[0].set_title(title)
+    axes[1].set(xlim=(x0, x1), ylim=(y0, y1), title=zoom_title)
+    axes[1].legend()
+    fig.tight_layout()
+    return fig
+
+
+def plot_pose_errors(t, position_error, attitude_error, std, *, n_sigma=3, figsize=(13, 6)):
+    """A 2×3 grid: position and attitude error per axis, each with the filter's ±3σ band.
+
+    Parameters
+    ----------
+    t : array_like, shape (N,)
+        Times, s.
+    position_error : array_like, shape (N, 3)
+        Estimate − truth, m.
+    attitude_error : array_like, shape (N, 3)
+        Rotation-vector attitude error, rad (drawn in degrees).
+    std : array_like, shape (N, 15)
+        The filter's standard deviations of the error state (position in columns 0–2,
+        attitude in 6–8), e.g. ``result.std()``.
+    n_sigma : float
+        Half-width of the bands.
+    figsize : tuple
+        Figure size.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    t = _vector(t, "t")
+    n = t.shape[0]
+    position_error = _rows(position_error, "position_error", n, 3)
+    attitude_error = _rows(attitude_error, "attitude_error", n, 3)
+    std = _rows(std, "std", n, 9)
+    fig, axes = plt.subplots(2, 3, figsize=figsize, sharex=True)
+    for i, axis in enumerate(_AXES):
+        plot_error_with_band(axes[0, i], t, position_error[:, i], std[:, i], n_sigma)
+        axes[0, i].set(title=f"position error {axis}", ylabel="m")
+        plot_error_with_band(axes[1, i], t, np.rad2deg(attitude_error[:, i]), np.rad2deg(std[:, 6 + i]), n_sigma)
+        axes[1, i].set(title=f"attitude error {axis}", ylabel="deg", xlabel="tau [s]")
+    axes[0, 0].legend()
+    fig.tight_layout()
+    return fig
+
+
+def plot_bias_estimates(t, accel_bias, gyro_bias, *, figsize=(12, 3.5)):
+    """The estimated accelerometer (m/s²) and gyroscope (deg/h) biases, one line per axis.
+
+    Parameters
+    ----------
+    t : array_like, shape (N,)
+        Times, s.
+    accel_bias : array_like, shape (N, 3)
+        b_a, m/s².
+    gyro_bias : array_like, shape (N, 3)
+        b_ω, rad/s (drawn in deg/h).
+    figsize : tuple
+        Figure size.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    t = _vector(t, "t")
+    accel_bias = _rows(accel_bias, "accel_bias", t.shape[0], 3)
+    gyro_bias = _rows(gyro_bias, "gyro_bias", t.shape[0], 3)
+    fig, axes = plt.subplots(1, 2, figsize=figsize)
+    for i, axis in enumerate(_AXES):
+        axes[0].plot(t, accel_bias[:, i], color=CURVE_COLORS[i], label=f"b_a {axis}")
+        axes[1].plot(t, gyro_bias[:, i] * _RAD_PER_S_TO_DEG_PER_H, color=CURVE_COLORS[i], label=f"b_w {axis}")
+    axes[0].set(xlabel="tau [s]", ylabel="m/s²", title="accelerometer bias estimate")
+    axes[1].set(xlabel="tau [s]", ylabel="deg/h", title="gyroscope bias estimate")
+    for ax in axes:
+        ax.legend()
+    fig.tight_layout()
+    return fig
+
+
+def plot_bias_sigmas(results, *, axis=2, figsize=(12, 3.5)):
+    """The filters' own σ of the accelerometer and gyroscope bias on one axis, log scale.
+
+    Parameters
+    ----------
+    results : mapping of str to EskfResult
+        Legend label -> a filter run (uses ``.t`` and ``.std()``); at least one.
+    axis : int
+        0, 1 or 2 for x, y, z.
+    figsize : tuple
+        Figure size.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    if not hasattr(results, "items") or len(results) == 0:
+        raise ValueError("results must be a non-empty mapping of label -> ESKF result")
+    if axis not in (0, 1, 2):
+        raise ValueError(f"axis must be 0, 1 or 2, got {axis!r}")
+    accel, gyro = {}, {}
+    for label, result in results.items():
+        if not (hasattr(result, "t") and callable(getattr(result, "std", None))):
+            raise ValueError(f"results[{label!r}] must be an ESKF result with .t and .std()")
+        std = result.std()
+        accel[label] = (result.t, std[:, 9 + axis])
+        gyro[label] = (result.t, std[:, 12 + axis] * _RAD_PER_S_TO_DEG_PER_H)
+    fig, axes = plt.subplots(1, 2, figsize=figsize)
+    plot_curves(axes[0], accel)
+    plot_curves(axes[1], gyro)
+    axes[0].set(xlabel="tau [s]", ylabel="m/s²", title=f"σ of the accelerometer bias, {_AXES[axis]}")
+    axes[1].set(xlabel="tau [s]", ylabel="deg/h", title=f"σ of the gyroscope bias, {_AXES[axis]}")
+    for ax in axes:
+        ax.set_yscale("log")
+        ax.legend()
+    fig.tight_layout()
+    return fig
+
+
+def plot_outage_error(t, error, sigma, outage, *, n_sigma=3, title="", label="horizontal error",
+                      outage_label="no observations", figsize=(9, 3.5)):
+    """An error through an outage of the observations, with the filter's ±3σ band.
+
+    Parameters
+    ----------
+    t : array_like, shape (N,)
+        Times, s.
+    error : array_like, shape (N,)
+        The error drawn (e.g. the horizontal error norm), m.
+    sigma : array_like, shape (N,)
+        The filter's σ of that error, m.
+    outage : (float, float)
+        Start and end of the outage, s (shaded grey).
+    n_sigma : float
+        Half-width of the band.
+    title, label : str
+        Title and legend label of the error.
+    outage_label : str
+        Legend label of the shaded outage.
+    figsize : tuple
+        Figure size.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    try:
+        start, end = (float(v) for v in outage)
+    except (TypeError, ValueError):
+        raise ValueError(f"outage must be (start, end) in s, got {outage!r}") from None
+    if not (np.isfinite(start) and np.isfinite(end) and start <= end):
+        raise ValueError(f"outage must be finite with start <= end, got {outage!r}")
+    fig, ax = plt.subplots(figsize=figsize)
+    shade_spans(ax, [(start, end)], label=outage_label, color="0.93")
+    plot_error_with_band(ax, t, error, sigma, n_sigma, label=label)
+    ax.set(xlabel="tau [s]", ylabel="m", title=title)
+    ax.legend()
+    fig.tight_layout()
+    return fig
+
+
+def plot_error_norms(curves, *, spans=None, span_label=None, colors=None, title="",
+                     ylabel="position error [m]", figsize=(11, 3.5)):
+    """Error norms of several runs over time, with shaded spans (e.g. interpolated IMU data).
+
+    Parameters
+    ----------
+    curves : mapping of str to (array_like (N,), array_like (N,))
+        Legend label -> (t, |error|).
+    spans : array_like, shape (K, 2), optional
+        Intervals to shade, e.g. ``flag_spans(imu.t, imu.interpolated)``.
+    span_label : str, optional
+        Legend label of the spans.
+    colors : sequence of colour, optional
+        One per curve (default the course's comparison colours).
+    title, ylabel : str
+        Title and y label.
+    figsize : tuple
+        Figure size.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=figsize)
+    if spans is not None:
+        shade_spans(ax, spans, label=span_label)
+    plot_curves(ax, curves, colors=colors, lw=0.8)
+    ax.set(xlabel="tau [s]", ylabel=ylabel, title=title)
+    ax.legend()
+    fig.tight_layout()
+    return fig

@@ -1,0 +1,142 @@
+"""Chapter 03 figures: a Kalman filter's run, one component or a 2-D track, with its bands."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kalman_course.plotting.vocabulary import (_vector, plot_covariance_ellipse, plot_error_with_band,
+                                               plot_estimate, plot_measurements, plot_sigma_band, plot_truth)
+
+__all__ = ["plot_kf_1d", "plot_kf_2d"]
+
+
+def _history_component(hist, index: int, n: int):
+    x_hat = np.asarray(getattr(hist, "x_hat", None), dtype=float)
+    P_hat = np.asarray(getattr(hist, "P_hat", None), dtype=float)
+    if x_hat.ndim != 2 or P_hat.ndim != 3 or P_hat.shape[0] != x_hat.shape[0]:
+        raise ValueError("hist must have x_hat (N, n) and P_hat (N, n, n), as a KFHistory")
+    if x_hat.shape[0] != n:
+        raise ValueError(f"hist has {x_hat.shape[0]} steps, t has {n}")
+    if not 0 <= index < x_hat.shape[1]:
+        raise ValueError(f"index must be in [0, {x_hat.shape[1]}), got {index}")
+    return x_hat, P_hat
+
+
+def plot_kf_1d(t, truth, ys, hist, *, index=0, n_sigma=3, name="position", unit="m",
+               figsize=(10, 6)):
+    """Chapter 03: one state component of a Kalman run, and its error with the ±3σ band.
+
+    Parameters
+    ----------
+    t : array_like, shape (N,)
+        Times of the steps.
+    truth : array_like, shape (N,)
+        True value of the component.
+    ys : array_like, shape (N,) or (N, 1), optional
+        Measurements of the component (NaN = none); None to draw none.
+    hist : KFHistory
+        Result of ``kf.run_kf`` (uses ``x_hat`` and ``P_hat``).
+    index : int
+        Which state component to show.
+    n_sigma : float
+        Half-width of the bands (default 3).
+    name, unit : str
+        For the axis labels.
+    figsize : tuple
+        Figure size.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Two panels sharing the time axis.
+    """
+    import matplotlib.pyplot as plt
+
+    t = _vector(t, "t")
+    truth = _vector(truth, "truth", n=t.shape[0])
+    x_hat, P_hat = _history_component(hist, index, t.shape[0])
+    est = x_hat[:, index]
+    sigma = np.sqrt(np.clip(P_hat[:, index, index], 0.0, None))
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=figsize, sharex=True)
+    plot_sigma_band(ax1, t, est, sigma, n_sigma)
+    plot_truth(ax1, t, truth)
+    if ys is not None:
+        plot_measurements(ax1, t, ys)
+    plot_estimate(ax1, t, est)
+    ax1.set_ylabel(f"{name} [{unit}]")
+    ax1.legend(loc="best", fontsize=8)
+    plot_error_with_band(ax2, t, est - truth, sigma, n_sigma)
+    ax2.set(xlabel="t [s]", ylabel=f"error [{unit}]")
+    ax2.legend(loc="best", fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def plot_kf_2d(t, truth_xy, meas_xy, hist, *, indices=(0, 1), n_sigma=3, ellipse_every=10,
+               names=("east", "north"), figsize=(12, 5)):
+    """Chapter 03: a 2-D track (truth, measurements, estimate, covariance ellipses) and the
+    error of each coordinate with its ±3σ band.
+
+    Parameters
+    ----------
+    t : array_like, shape (N,)
+        Times of the steps.
+    truth_xy : array_like, shape (N, 2)
+        True positions.
+    meas_xy : array_like, shape (N, 2)
+        Measured positions (NaN rows = none).
+    hist : KFHistory
+        Result of ``kf.run_kf``; positions are the state components ``indices``.
+    indices : (int, int)
+        State components holding the two coordinates (``(0, 1)`` in the blocked CV
+        state ``[p_x, p_y, v_x, v_y]``).
+    n_sigma : float
+        Size of ellipses and bands.
+    ellipse_every : int
+        Draw an ellipse every this many steps (0 for none).
+    names : (str, str)
+        Axis names.
+    figsize : tuple
+        Figure size.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The track on the left, the two error panels on the right.
+    """
+    import matplotlib.pyplot as plt
+
+    t = _vector(t, "t")
+    n = t.shape[0]
+    truth_xy = np.asarray(truth_xy, dtype=float)
+    meas_xy = np.asarray(meas_xy, dtype=float)
+    for arr, label in ((truth_xy, "truth_xy"), (meas_xy, "meas_xy")):
+        if arr.shape != (n, 2):
+            raise ValueError(f"{label} must have shape ({n}, 2), got {arr.shape}")
+    i, j = (int(k) for k in indices)
+    x_hat, P_hat = _history_component(hist, max(i, j), n)
+    if isinstance(ellipse_every, bool) or not isinstance(ellipse_every, (int, np.integer)) or ellipse_every < 0:
+        raise ValueError(f"ellipse_every must be an integer >= 0, got {ellipse_every!r}")
+    fig = plt.figure(figsize=figsize)
+    grid = fig.add_gridspec(2, 2, width_ratios=(1.1, 1))
+    ax_map = fig.add_subplot(grid[:, 0])
+    ax_e1 = fig.add_subplot(grid[0, 1])
+    ax_e2 = fig.add_subplot(grid[1, 1], sharex=ax_e1)
+    plot_truth(ax_map, truth_xy[:, 0], truth_xy[:, 1])
+    plot_measurements(ax_map, meas_xy[:, 0], meas_xy[:, 1])
+    plot_estimate(ax_map, x_hat[:, i], x_hat[:, j])
+    if ellipse_every:
+        block = np.ix_([i, j], [i, j])
+        for k in range(0, n, ellipse_every):
+            plot_covariance_ellipse(ax_map, x_hat[k, [i, j]], P_hat[k][block], n_sigma,
+                                    label=f"±{n_sigma:g}σ ellipse" if k == 0 else None)
+    ax_map.set(xlabel=f"{names[0]} [m]", ylabel=f"{names[1]} [m]", aspect="equal")
+    ax_map.legend(loc="best", fontsize=8)
+    for ax, col, k, name in ((ax_e1, 0, i, names[0]), (ax_e2, 1, j, names[1])):
+        plot_error_with_band(ax, t, x_hat[:, k] - truth_xy[:, col],
+                             np.sqrt(np.clip(P_hat[:, k, k], 0, None)), n_sigma)
+        ax.set_ylabel(f"{name} error [m]")
+    ax_e1.legend(loc="upper right", fontsize=8)
+    ax_e2.set_xlabel("t [s]")
+    fig.tight_layout()
+    return fig
