@@ -11,6 +11,7 @@ import pytest
 from kalman_course.filters import eskf
 from kalman_course.core import so3
 from kalman_course.core.observations import PositionObservations
+from kalman_course.evaluation.pose import evaluate
 from kalman_course.data import imu_trajectory, load_kitti
 from kalman_course.filters.eskf import NominalState
 from kalman_course.filters.eskf_config import load_config
@@ -171,6 +172,16 @@ def test_reset_jacobian_matches_finite_differences_of_the_reset():
     # the other sign convention's Jacobian (I − ½[δθ̂]×) is wrong here
     assert np.abs(np.eye(3) - 0.5 * so3.hat(dth_hat) - J).max() > 0.02
     np.testing.assert_array_equal(np.delete(np.delete(G, np.s_[6:9], 0), np.s_[6:9], 1), np.eye(12))
+
+
+def test_reset_covariance_is_G_P_Gt_with_the_reset_jacobian():
+    rng = np.random.default_rng(6)
+    A = rng.normal(size=(15, 15)) * 0.1
+    P = eskf.update_covariance(A @ A.T + 1e-4 * np.eye(15), np.zeros((15, 6)), eskf.POSE_G, np.eye(6))
+    dx = rng.normal(size=15) * 0.05
+    G = eskf.reset_jacobian(dx)
+    np.testing.assert_allclose(eskf.reset_covariance(P, dx), G @ P @ G.T, rtol=1e-13, atol=1e-17)
+    assert np.array_equal(eskf.reset_covariance(P, dx, exact=False), P)
 
 
 def test_joseph_update_keeps_P_symmetric_and_shrinks_it():
@@ -352,9 +363,9 @@ def test_filter_recovers_imu_biases_on_synthetic_motion(bias_model):
 # ---------------------------------------------------------------------------------------
 
 def _metrics(ex, res):
-    est = eskf.evaluate(res.t, res.position, res.rotation, ex.truth, res.P)
+    est = evaluate(res.t, res.position, res.rotation, ex.truth, res.P)
     sel = np.isin(ex.lidar.t, res.t)
-    raw = eskf.evaluate(ex.lidar.t[sel], ex.lidar.position[sel], ex.lidar.rotation[sel], ex.truth)
+    raw = evaluate(ex.lidar.t[sel], ex.lidar.position[sel], ex.lidar.rotation[sel], ex.truth)
     return est, raw
 
 
@@ -396,11 +407,11 @@ def test_whole_sequence_with_lidar_needs_the_interpolation_flags():
     ex = load_kitti("seq00")
     k0, s0 = ex.initial_state()
     res = eskf.run(ex.imu, s0, "kitti_lidar", ex.gravity, lidar=ex.lidar, start=k0)
-    est = eskf.evaluate(res.t, res.position, res.rotation, ex.truth, res.P)
+    est = evaluate(res.t, res.position, res.rotation, ex.truth, res.P)
     assert _seq00_ate(ex, res) <= 0.2
     assert 3.0 <= est["nees_pose"] <= 12.0
     blind = eskf.run(ex.imu, s0, "kitti_lidar", ex.gravity, lidar=ex.lidar, start=k0, use_interpolation_flags=False)
-    worse = eskf.evaluate(blind.t, blind.position, blind.rotation, ex.truth, blind.P)
+    worse = evaluate(blind.t, blind.position, blind.rotation, ex.truth, blind.P)
     assert _seq00_ate(ex, blind) > _seq00_ate(ex, res)
     assert worse["nees_pose"] > 12.0            # overconfident inside the interpolated spans
 

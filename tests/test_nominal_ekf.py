@@ -7,6 +7,7 @@ import pytest
 
 from kalman_course.filters import eskf, nominal_ekf
 from kalman_course.core import so3
+from kalman_course.evaluation.pose import evaluate
 from kalman_course.data import load_kitti
 
 G = np.array([0.0, 0.0, -9.8092])
@@ -73,7 +74,7 @@ def test_nominal_ekf_agrees_with_the_eskf_on_kitti():
     assert np.abs(r.position - e.position).max() < 5e-3
     np.testing.assert_allclose(np.linalg.norm(r.quaternion, axis=1), 1.0, atol=1e-12)
     assert np.array_equal(r.P, np.swapaxes(r.P, 1, 2))
-    m = eskf.evaluate(r.t, r.position, r.rotation, ex.truth, r.P_pose)
-    me = eskf.evaluate(e.t, e.position, e.rotation, ex.truth, e.P)
+    m = evaluate(r.t, r.position, r.rotation, ex.truth, r.P_pose)
+    me = evaluate(e.t, e.position, e.rotation, ex.truth, e.P)
     assert m["ape_position"] == pytest.approx(me["ape_position"], rel=0.02)
     assert m["nees_pose"] == pytest.approx(me["nees_pose"], rel=0.05)

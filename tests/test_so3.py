@@ -202,3 +202,34 @@ def test_log_handles_a_mixed_batch_of_angles(rng):
     np.testing.assert_allclose(got, phi, atol=1e-9)
     for k in range(len(angles)):   # the batch gives what single calls give
         np.testing.assert_allclose(so3.log(so3.exp(phi[k])), got[k], atol=1e-15)
+
+
+@pytest.mark.parametrize("func", [so3.exp, so3.right_jacobian, so3.left_jacobian, so3.right_jacobian_inv,
+                                  so3.quat_exp, so3.hat])
+def test_one_element_and_a_stack_give_the_same_result(func, rng):
+    """Each map has a path for one element (floats) and one for a stack (numpy): they agree,
+    on both sides of the small-angle switch."""
+    angles = np.array([0.0, 1e-9, 0.5 * so3.SMALL_ANGLE, 2.0 * so3.SMALL_ANGLE, 0.3, 2.5])
+    axis = rng.standard_normal((len(angles), 3))
+    phi = angles[:, None] * axis / np.linalg.norm(axis, axis=1, keepdims=True)
+    stacked = func(phi)
+    for k in range(len(phi)):
+        np.testing.assert_allclose(func(phi[k]), stacked[k], rtol=0, atol=1e-15)
+
+
+def test_quaternion_maps_agree_one_by_one_and_stacked(rng):
+    q = so3.matrix_to_quat(so3.exp(random_rotvecs(rng, 5)))
+    p = so3.matrix_to_quat(so3.exp(random_rotvecs(rng, 5)))
+    R, pq = so3.quat_to_matrix(2.0 * q), so3.quat_multiply(p, q)
+    for k in range(5):
+        np.testing.assert_allclose(so3.quat_to_matrix(2.0 * q[k]), R[k], atol=1e-15)
+        np.testing.assert_allclose(so3.quat_multiply(p[k], q[k]), pq[k], atol=1e-15)
+
+
+def test_check_false_gives_the_same_result_without_validating(rng):
+    phi = random_rotvecs(rng, 4, max_angle=3.0)
+    R = so3.exp(phi)
+    np.testing.assert_array_equal(so3.exp(phi, check=False), R)
+    np.testing.assert_array_equal(so3.log(R[0], check=False), so3.log(R[0]))
+    np.testing.assert_array_equal(so3.hat(phi, check=False), so3.hat(phi))
+    np.testing.assert_array_equal(so3.left_jacobian(phi[1], check=False), so3.left_jacobian(phi[1]))

@@ -24,9 +24,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from kalman_course.core import so3
-from kalman_course.core.validation import as_matrix, as_vector
+from kalman_course.core.validation import as_matrix, as_rotation, as_vector
 
-__all__ = ["NavState", "NavTrajectory", "midpoint_step", "dead_reckon"]
+__all__ = ["NavState", "NavTrajectory", "integrate_midpoint", "midpoint_step", "dead_reckon"]
 
 
 @dataclass(frozen=True)
@@ -88,10 +88,62 @@ def _check_state(state: NavState, name: str) -> tuple[np.ndarray, np.ndarray, np
                              f"missing {field!r}")
     p = as_vector(state.position, f"{name}.position", 3)
     v = as_vector(state.velocity, f"{name}.velocity", 3)
-    R = as_matrix(state.rotation, f"{name}.rotation", (3, 3))
-    if not so3.is_rotation(R, tol=1e-6):
-        raise ValueError(f"{name}.rotation must be a rotation matrix (RᵀR = I, det R = +1)")
+    R = as_rotation(state.rotation, f"{name}.rotation")
     return p, v, R
+
+
+def integrate_midpoint(position, velocity, rotation, a, w, dt, gravity):
+    """Midpoint mechanisation over n steps, unvalidated: p, v, R at the n + 1 nodes.
+
+    The one implementation of the lecture's midpoint integration; :func:`midpoint_step`,
+    :func:`dead_reckon` and the ESKF's nominal propagation call it after validating their
+    inputs. Per step k, with T = dt[k]:
+
+    R_{k+1} = R_k Exp(w_k T);  â_k = R_k a_k + g;  v_{k+1} = v_k + ½(â_k + â_{k+1}) T;
+    p_{k+1} = p_k + v_k T + ¼(â_k + â_{k+1}) T².
+
+    Parameters
+    ----------
+    position, velocity : numpy.ndarray, shape (3,)
+        p and v at the first node (navigation frame).
+    rotation : numpy.ndarray, shape (3, 3)
+        R = R_nb at the first node.
+    a : numpy.ndarray, shape (n + 1, 3)
+        Bias-corrected specific force f − b_a at each node, body frame, m/s².
+    w : numpy.ndarray, shape (n, 3)
+        Each step's bias-corrected mean rate ½(ω_k + ω_{k+1}) − b_ω, body frame, rad/s.
+    dt : numpy.ndarray, shape (n,)
+        Step lengths, s.
+    gravity : numpy.ndarray, shape (3,)
+        g in the navigation frame, m/s².
+
+    Returns
+    -------
+    positions, velocities : numpy.ndarray, shape (n + 1, 3)
+    rotations : numpy.ndarray, shape (n + 1, 3, 3)
+    """
+    n = len(dt)
+    dtc = dt[:, None]
+    steps = so3.exp(w * dtc, check=False)
+    Rs = np.empty((n + 1, 3, 3))
+    Rs[0] = rotation
+    for k, step in enumerate(steps):
+        np.dot(Rs[k], step, out=Rs[k + 1])
+    acc = np.matmul(Rs, a[:, :, None])[:, :, 0]
+    acc += gravity
+    dv = acc[:-1] + acc[1:]
+    dv *= 0.5 * dtc                         # ½(â_k + â_{k+1}) T
+    vs = np.empty((n + 1, 3))
+    vs[0] = 0.0
+    np.cumsum(dv, axis=0, out=vs[1:])
+    vs += velocity
+    dp = vs[:-1] + 0.5 * dv
+    dp *= dtc                               # v_k T + ¼(â_k + â_{k+1}) T²
+    ps = np.empty((n + 1, 3))
+    ps[0] = 0.0
+    np.cumsum(dp, axis=0, out=ps[1:])
+    ps += position
+    return ps, vs, Rs
 
 
 def midpoint_step(state: NavState, f0, w0, f1, w1, dt: float, gravity,
@@ -126,14 +178,9 @@ def midpoint_step(state: NavState, f0, w0, f1, w1, dt: float, gravity,
     dt = float(dt)
     if not np.isfinite(dt) or dt <= 0.0:
         raise ValueError(f"dt must be a positive number of seconds, got {dt}")
-    w_mean = 0.5 * (w0 + w1) - b_w
-    R1 = R @ so3.exp(w_mean * dt)
-    a0 = R @ (f0 - b_a) + g
-    a1 = R1 @ (f1 - b_a) + g
-    a_mean = 0.5 * (a0 + a1)
-    v1 = v + a_mean * dt
-    p1 = p + v * dt + 0.5 * a_mean * dt * dt
-    return NavState(p1, v1, R1)
+    ps, vs, Rs = integrate_midpoint(p, v, R, np.stack([f0 - b_a, f1 - b_a]), (0.5 * (w0 + w1) - b_w)[None, :],
+                                    np.array([dt]), g)
+    return NavState(ps[1], vs[1], Rs[1])
 
 
 def dead_reckon(imu, initial_state: NavState, gravity, accel_bias=None, gyro_bias=None,
@@ -180,18 +227,5 @@ def dead_reckon(imu, initial_state: NavState, gravity, accel_bias=None, gyro_bia
     g = as_vector(gravity, "gravity", 3)
     b_a, b_w = _bias(accel_bias, "accel_bias"), _bias(gyro_bias, "gyro_bias")
 
-    n = len(t)
-    steps = so3.exp((0.5 * (w[:-1] + w[1:]) - b_w) * dt[:, None])
-    R = np.empty((n, 3, 3))
-    R[0] = R0
-    for k in range(n - 1):
-        R[k + 1] = R[k] @ steps[k]
-    a = np.einsum("kij,kj->ki", R, f - b_a) + g
-    a_mean = 0.5 * (a[:-1] + a[1:])
-    v = np.empty((n, 3))
-    v[0] = v0
-    v[1:] = v0 + np.cumsum(a_mean * dt[:, None], axis=0)
-    p = np.empty((n, 3))
-    p[0] = p0
-    p[1:] = p0 + np.cumsum(v[:-1] * dt[:, None] + 0.5 * a_mean * (dt * dt)[:, None], axis=0)
+    p, v, R = integrate_midpoint(p0, v0, R0, f - b_a, 0.5 * (w[:-1] + w[1:]) - b_w, dt, g)
     return NavTrajectory(t.copy(), p, v, R)

@@ -23,12 +23,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["PositionObservations", "PoseObservations", "ROTATION_TOL", "as_rotation"]
+from kalman_course.core.validation import ROTATION_TOL
+
+__all__ = ["PositionObservations", "PoseObservations"]
 
 #: Largest accepted max-abs entry of RᵀR − I for a measured rotation. Rotations stored with
 #: float64 round-off are ~1e-15 off; 1e-6 also admits matrices rebuilt from quaternions
 #: printed with single-precision digits, and rejects anything that is not a rotation.
-ROTATION_TOL = 1e-6
 
 
 def _readonly(arr: np.ndarray) -> np.ndarray:
@@ -103,40 +104,6 @@ def _check_rotations(R: np.ndarray, name: str) -> None:
         k = int(np.argmax(det <= 0.0))
         raise ValueError(f"{label(k)} is a reflection, not a rotation (det = {det[k]:.3g}, "
                          "expected +1)")
-
-
-def as_rotation(value, name: str) -> np.ndarray:
-    """Return ``value`` as a (3, 3) float64 rotation matrix, checked as the records check theirs.
-
-    For a single measured attitude handed to a filter step (e.g. a pose update).
-
-    Parameters
-    ----------
-    value : array_like, shape (3, 3)
-        The matrix.
-    name : str
-        The argument's name, used in the error message.
-
-    Returns
-    -------
-    numpy.ndarray, shape (3, 3)
-
-    Raises
-    ------
-    ValueError
-        If ``value`` is not a finite 3 × 3 matrix with max |RᵀR − I| ≤ :data:`ROTATION_TOL`
-        and det +1, e.g. ``R_obs is not a rotation matrix (|RᵀR − I| = 0.21, ...)``.
-    """
-    try:
-        R = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a 3 x 3 rotation matrix, got {value!r}") from None
-    if R.shape != (3, 3):
-        raise ValueError(f"{name} must be a 3 x 3 rotation matrix, got shape {R.shape}")
-    if not np.isfinite(R).all():
-        raise ValueError(f"{name} must be finite, got NaN or inf")
-    _check_rotations(R, name)
-    return R
 
 
 @dataclass(frozen=True, eq=False, repr=False)

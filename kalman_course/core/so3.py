@@ -16,6 +16,13 @@ Conventions used throughout the course
 Every function accepts a single element or a stack along leading axes: a vector has
 shape (..., 3), a matrix (..., 3, 3), a quaternion (..., 4). Results keep the leading
 axes. Only numpy is used.
+
+These are the course's only SO(3) kernels (the filters use them in their inner loops), so
+each map has two paths with the same thresholds (:data:`SMALL_ANGLE`, :data:`NEAR_PI`)
+and the same Taylor series: one for a single element, in Python floats (a filter calls it
+once per update, where numpy's per-call cost would dominate), and one for a stack, in
+numpy. Every function validates its arguments; ``exp``, ``log``, ``hat`` and
+``left_jacobian`` take ``check=False`` for callers that validated at their own boundary.
 """
 
 from __future__ import annotations
@@ -172,20 +179,24 @@ def _hat(phi: np.ndarray) -> np.ndarray:
     return (phi @ _HAT_GENERATORS.T).reshape(*phi.shape[:-1], 3, 3)
 
 
-def hat(phi) -> np.ndarray:
+def hat(phi, *, check: bool = True) -> np.ndarray:
     """Skew-symmetric matrix of a vector.
 
     Parameters
     ----------
     phi : array_like, shape (..., 3)
         Vector(s) φ, any unit.
+    check : bool, keyword-only
+        Validate the argument (default). A filter's inner loop that validated its inputs
+        at its own boundary passes False to skip the check (a float64 ndarray is required then).
 
     Returns
     -------
     numpy.ndarray, shape (..., 3, 3)
         [φ]× such that ``hat(a) @ b == cross(a, b)``.
     """
-    phi = _stack(phi, "phi", (3,))
+    if check:
+        phi = _stack(phi, "phi", (3,))
     if phi.ndim == 1:
         x, y, z = phi.tolist()
         return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
@@ -211,7 +222,7 @@ def vee(M) -> np.ndarray:
                            M[..., 1, 0] - M[..., 0, 1]], -1)
 
 
-def exp(phi) -> np.ndarray:
+def exp(phi, *, check: bool = True) -> np.ndarray:
     """Exponential map so(3) → SO(3) (Rodrigues' formula), written Exp(φ) in the notes.
 
     ``Exp(φ) = I + sin θ/θ [φ]× + (1 − cos θ)/θ² [φ]×²`` with θ = |φ|; both coefficients
@@ -221,16 +232,19 @@ def exp(phi) -> np.ndarray:
     ----------
     phi : array_like, shape (..., 3)
         Rotation vector(s) φ = θ·a in radians (θ the angle, a the unit axis).
+    check : bool, keyword-only
+        Validate the argument (default). A filter's inner loop that validated its inputs
+        at its own boundary passes False to skip the check (a float64 ndarray is required then).
 
     Returns
     -------
     numpy.ndarray, shape (..., 3, 3)
         The rotation matrix/matrices Exp(φ).
     """
-    return _quadratic_map(_stack(phi, "phi", (3,)), "exp")
+    return _quadratic_map(_stack(phi, "phi", (3,)) if check else phi, "exp")
 
 
-def log(R) -> np.ndarray:
+def log(R, *, check: bool = True) -> np.ndarray:
     """Logarithm map SO(3) → so(3) as a rotation vector, written Log(R) in the notes.
 
     Stable for all angles: a Taylor series near θ = 0, the closed form in between and,
@@ -241,13 +255,17 @@ def log(R) -> np.ndarray:
     ----------
     R : array_like, shape (..., 3, 3)
         Rotation matrix/matrices (assumed orthonormal; see :func:`orthonormalise`).
+    check : bool, keyword-only
+        Validate the argument (default). A filter's inner loop that validated its inputs
+        at its own boundary passes False to skip the check (a float64 ndarray is required then).
 
     Returns
     -------
     numpy.ndarray, shape (..., 3)
         Rotation vector(s) φ in radians with |φ| ∈ [0, π].
     """
-    R = _stack(R, "R", (3, 3))
+    if check:
+        R = _stack(R, "R", (3, 3))
     if R.ndim == 2:
         (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R.tolist()
         sx, sy, sz = 0.5 * (r21 - r12), 0.5 * (r02 - r20), 0.5 * (r10 - r01)   # sin θ · a
@@ -331,12 +349,13 @@ def right_jacobian_inv(phi) -> np.ndarray:
     return _quadratic_map(phi, "right_jacobian_inv")
 
 
-def left_jacobian(phi) -> np.ndarray:
+def left_jacobian(phi, *, check: bool = True) -> np.ndarray:
     """Left Jacobian of SO(3): ``Exp(φ + δ) ≈ Exp(J_l(φ) δ) Exp(φ)``; equals J_r(−φ).
 
     ``J_l = I + (1 − cos θ)/θ² [φ]× + (θ − sin θ)/θ³ [φ]×²``, shape (..., 3, 3) for φ (..., 3).
+    ``check=False`` skips the validation of φ (see :func:`exp`).
     """
-    return _quadratic_map(_stack(phi, "phi", (3,)), "left_jacobian")
+    return _quadratic_map(_stack(phi, "phi", (3,)) if check else phi, "left_jacobian")
 
 
 def left_jacobian_inv(phi) -> np.ndarray:

@@ -33,6 +33,9 @@ SYMMETRY_RTOL = 1e-9
 #: of order 1e-16 relative, far inside it.
 PSD_RTOL = 1e-9
 
+#: Largest max |RᵀR − I| accepted for a rotation matrix (measured attitudes carry round-off).
+ROTATION_TOL = 1e-6
+
 
 def _as_float_array(value, name: str, expected: str) -> np.ndarray:
     """``value`` as a float ndarray, or a ValueError naming ``name`` if it holds no numbers.
@@ -343,3 +346,19 @@ def as_observation_noise(R, C, m: int) -> np.ndarray:
     C = as_matrix(C, "C", (m, None))
     R = as_covariance(R, "R", C.shape[1], positive_definite=True)
     return C @ R @ C.T
+
+
+def as_rotation(value, name: str) -> np.ndarray:
+    """Return ``value`` as a (3, 3) rotation matrix: RᵀR = I within ROTATION_TOL and det R = +1.
+
+    Raises ValueError naming ``name`` for a wrong shape, a NaN, a matrix that is not
+    orthonormal or a reflection (det −1).
+    """
+    R = as_matrix(value, name, (3, 3))
+    error = float(np.abs(R.T @ R - np.eye(3)).max())
+    (a, b, c), (d, e, f), (g, h, i) = R.tolist()
+    det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+    if error > ROTATION_TOL or det <= 0.0:
+        raise ValueError(f"{name} must be a rotation matrix (RᵀR = I within {ROTATION_TOL:g}, det +1), "
+                         f"got max |RᵀR − I| = {error:.3g}, det = {det:.3g}")
+    return R

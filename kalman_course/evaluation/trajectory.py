@@ -11,8 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from kalman_course.core import so3
-from kalman_course.core.validation import as_flag, as_matrix, as_scalar, as_vector
+from kalman_course.core.validation import as_flag, as_matrix, as_rotation, as_scalar, as_vector
 from kalman_course.evaluation.metrics import position_rmse
 
 __all__ = ["umeyama", "apply_alignment", "ate_rmse"]
@@ -98,9 +97,7 @@ def apply_alignment(points, R, t, s: float = 1.0) -> np.ndarray:
         ``s`` is not positive.
     """
     points = _points(points, "points")
-    R = as_matrix(R, "R", (3, 3))
-    if not so3.is_rotation(R, tol=1e-6):
-        raise ValueError(f"R must be a rotation matrix (R Rᵀ = I, det R = +1), got {R.tolist()}")
+    R = as_rotation(R, "R")
     t = as_vector(t, "t", 3)
     s = as_scalar(s, "s")
     return s * points @ R.T + t

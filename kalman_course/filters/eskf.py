@@ -35,9 +35,10 @@ One set of formulas, two drivers
 --------------------------------
 Each formula above is written once, in a private kernel that works on one step or on a
 stack of steps (``_error_dynamics``, ``_noise_jacobian``, ``_discretise``,
-``_process_noise``, ``_propagate_covariance``, ``_mechanise``, ``_gain``, ``_inject``,
-``_reset_covariance``); rotations go through :mod:`kalman_course.core.so3` and the Kalman
-update through :mod:`kalman_course.core.linalg`. The public functions validate their
+``_process_noise``, ``_propagate_covariance``, ``_gain``, ``_inject``,
+``_reset_covariance``); rotations go through :mod:`kalman_course.core.so3`, the nominal
+midpoint integration through :func:`kalman_course.core.imu.integrate_midpoint` (shared with
+chapter 07's mechanisation) and the Kalman update through :mod:`kalman_course.core.linalg`. The public functions validate their
 arguments and call these kernels, and so do both drivers:
 
 - :class:`ESKF`, one step at a time, for lectures and exercises;
@@ -69,13 +70,14 @@ import numpy as np
 from numpy import dot
 
 from kalman_course.core import so3
+from kalman_course.core.imu import integrate_midpoint
 from kalman_course.core.linalg import gain, innovation_covariance, joseph_update, symmetrise
-from kalman_course.core.observations import ROTATION_TOL, PoseObservations, PositionObservations
-from kalman_course.core.validation import as_covariance, as_matrix, as_scalar, as_vector
+from kalman_course.core.observations import PoseObservations, PositionObservations
+from kalman_course.core.validation import as_covariance, as_flag, as_matrix, as_rotation, as_scalar, as_vector
 from kalman_course.filters.eskf_config import BIAS_MODELS, EskfConfig, load_config
 
 __all__ = [
-    "NominalState", "ESKF", "EskfResult", "run", "evaluate", "ImuGapWarning", "IMU_GAP_FACTOR",
+    "NominalState", "ESKF", "EskfResult", "run", "ImuGapWarning", "IMU_GAP_FACTOR",
     "error_dynamics", "noise_jacobian", "discretise", "process_noise", "propagate_covariance",
     "pose_residual", "position_residual", "kalman_gain", "update_covariance", "inject",
     "reset_jacobian", "reset_covariance", "nominal_step", "initial_covariance",
@@ -96,6 +98,15 @@ POSE_G.setflags(write=False)
 POSITION_G = np.zeros((3, 15))
 POSITION_G[:, IDX_P] = _I3
 POSITION_G.setflags(write=False)
+
+# The blocks of F_t that do not depend on the state: ∂δṗ/∂δv = I and ∂δθ̇/∂δb_ω = −I.
+_F_T_CONSTANT = np.zeros((15, 15))
+_F_T_CONSTANT[IDX_P, IDX_V] = _I3
+_F_T_CONSTANT[IDX_TH, IDX_BW] = -_I3
+_F_T_CONSTANT.setflags(write=False)
+
+# Columns of B_t: n_a and n_ω are white noise (scaled by T), n_ba and n_bω random walks (√T).
+_WHITE_NOISE_COLUMN = np.arange(12) < 6
 
 #: An IMU step longer than this many median steps is a gap (see the module docstring).
 IMU_GAP_FACTOR = 3.0
@@ -145,7 +156,7 @@ class NominalState:
                                  f"missing {name!r}")
         return cls(np.array(as_vector(nav.position, "nav.position", 3)),
                    np.array(as_vector(nav.velocity, "nav.velocity", 3)),
-                   np.array(_as_rotation(nav.rotation, "nav.rotation")),
+                   np.array(as_rotation(nav.rotation, "nav.rotation")),
                    np.zeros(3) if accel_bias is None else np.array(as_vector(accel_bias, "accel_bias", 3)),
                    np.zeros(3) if gyro_bias is None else np.array(as_vector(gyro_bias, "gyro_bias", 3)))
 
@@ -153,18 +164,6 @@ class NominalState:
 # ---------------------------------------------------------------------------------------
 # Argument checks (every public function validates at its boundary with these)
 # ---------------------------------------------------------------------------------------
-
-def _as_rotation(value, name: str) -> np.ndarray:
-    """Return ``value`` as a (3, 3) rotation matrix: RᵀR = I within ROTATION_TOL, det R = +1."""
-    R = as_matrix(value, name, (3, 3))
-    error = float(np.abs(dot(R.T, R) - _I3).max())
-    (a, b, c), (d, e, f), (g, h, i) = R.tolist()
-    det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
-    if error > ROTATION_TOL or det <= 0.0:
-        raise ValueError(f"{name} must be a rotation matrix (RᵀR = I within {ROTATION_TOL:g}, det +1), "
-                         f"got max |RᵀR − I| = {error:.3g}, det = {det:.3g}")
-    return R
-
 
 def _as_nominal(value, name: str) -> NominalState:
     """Return ``value`` (a NominalState, or a NavState with zero biases) with every field checked."""
@@ -175,7 +174,7 @@ def _as_nominal(value, name: str) -> NominalState:
         value = NominalState(value.position, value.velocity, value.rotation)
     fields = (as_vector(value.position, f"{name}.position", 3),
               as_vector(value.velocity, f"{name}.velocity", 3),
-              _as_rotation(value.rotation, f"{name}.rotation"),
+              as_rotation(value.rotation, f"{name}.rotation"),
               as_vector(value.accel_bias, f"{name}.accel_bias", 3),
               as_vector(value.gyro_bias, f"{name}.gyro_bias", 3))
     if all(new is old for new, old in zip(fields, (value.position, value.velocity, value.rotation,
@@ -204,12 +203,6 @@ def _as_config(config) -> EskfConfig:
         return load_config(config)
     raise ValueError(f"config must be an EskfConfig or the name or path of a configuration file, "
                      f"got {type(config).__name__}")
-
-
-def _as_flag(value, name: str) -> bool:
-    if not isinstance(value, (bool, np.bool_)):
-        raise ValueError(f"{name} must be True or False, got {value!r}")
-    return bool(value)
 
 
 def _as_finite_rows(value, name: str, tail: tuple, offset: int = 0) -> np.ndarray:
@@ -268,16 +261,16 @@ def _as_observations(value, name: str, record: type):
 
 # ---------------------------------------------------------------------------------------
 # Kernels: each formula once, for one step or a stack of steps (leading axis), unvalidated
+# (their callers validate at the public boundary, so they call so3 with check=False too)
 # ---------------------------------------------------------------------------------------
 
 def _error_dynamics(R, a, w) -> np.ndarray:
     """F_t (..., 15, 15) at attitude R (..., 3, 3), corrected force a and rate w (..., 3)."""
-    F = np.zeros((*R.shape[:-2], 15, 15))
-    F[..., IDX_P, IDX_V] = _I3
-    np.negative(R @ so3.hat(a), out=F[..., IDX_V, IDX_TH])      # −R[a]×: body-frame force in the hat
-    np.negative(R, out=F[..., IDX_V, IDX_BA])                   # −R
-    np.negative(so3.hat(w), out=F[..., IDX_TH, IDX_TH])         # −[ω]×
-    F[..., IDX_TH, IDX_BW] = -_I3
+    F = np.empty((*R.shape[:-2], 15, 15))
+    F[...] = _F_T_CONSTANT                                      # zeros and the state-free blocks I, −I
+    np.negative(R @ so3.hat(a, check=False), out=F[..., IDX_V, IDX_TH])   # −R[a]×: body-frame force
+    np.negative(R, out=F[..., IDX_V, IDX_BA])                            # −R
+    np.negative(so3.hat(w, check=False), out=F[..., IDX_TH, IDX_TH])     # −[ω]×
     return F
 
 
@@ -300,9 +293,8 @@ def _discretise(F_t, B_t, T, overwrite: bool = False):
     T = np.asarray(T, dtype=float)[..., None, None]
     F = np.multiply(F_t, T, out=F_t if overwrite else None)
     F.reshape(-1, 225)[:, ::16] += 1.0                     # + I: every 16th entry of a 15 × 15 block
-    B = B_t if overwrite else B_t.copy()
-    B[..., :6] *= T
-    B[..., 6:] *= np.sqrt(T)
+    column_scale = np.where(_WHITE_NOISE_COLUMN[:B_t.shape[-1]], T, np.sqrt(T))      # T or √T, (..., 1, k)
+    B = np.multiply(B_t, column_scale, out=B_t if overwrite else None)
     return F, B
 
 
@@ -320,7 +312,7 @@ def _process_noise(density, T, bias_model: str) -> np.ndarray:
     return np.concatenate([white, walk], axis=-1)
 
 
-def _propagate_covariance(P, F, B, Q) -> np.ndarray:
+def _propagate_covariance(P, F, B, Q) -> tuple[np.ndarray, np.ndarray]:
     """P after n steps P ← F_i P F_iᵀ + B_i Q_i B_iᵀ (F (n, 15, 15), B (n, 15, k)).
 
     ``Q`` is (n, k, k), or (n, k) for the diagonal Q of :func:`_process_noise`. Composed:
@@ -331,9 +323,8 @@ def _propagate_covariance(P, F, B, Q) -> np.ndarray:
     n = F.shape[0]
     Psi = np.empty((n, 15, 15))
     Psi[n - 1] = _I15
-    Psi_i, F_i = list(Psi), list(F)         # views: the least overhead per product
     for i in range(n - 2, -1, -1):
-        dot(Psi_i[i + 1], F_i[i + 1], out=Psi_i[i])
+        dot(Psi[i + 1], F[i + 1], out=Psi[i])
     Phi = dot(Psi[0], F[0])
     if Q.ndim == 2:
         # diagonal Q: Σ_i (Ψ_i B_i √Q_i)(Ψ_i B_i √Q_i)ᵀ = L Lᵀ with the L_i side by side, one product
@@ -344,39 +335,6 @@ def _propagate_covariance(P, F, B, Q) -> np.ndarray:
         M = Psi @ B
         noise = (M @ Q @ np.swapaxes(M, 1, 2)).sum(axis=0)
     return symmetrise(dot(dot(Phi, P), Phi.T) + noise), Phi
-
-
-def _mechanise(x: NominalState, a, w, dt, g):
-    """Midpoint mechanisation over n steps: p, v, R at the n+1 nodes.
-
-    ``a`` (n+1, 3): bias-corrected specific force f − b_a at the nodes; ``w`` (n, 3): each
-    step's bias-corrected mean rate ½(ω_i + ω_{i+1}) − b_ω; ``dt`` (n,). Per step:
-    R' = R Exp(w T); a_i = R_i a_i + g (nav frame); v' = v + ½(a_i + a_{i+1}) T;
-    p' = p + v T + ¼(a_i + a_{i+1}) T².
-    """
-    n = len(dt)
-    dtc = dt[:, None]
-    steps = list(so3.exp(w * dtc))
-    Rs = np.empty((n + 1, 3, 3))
-    Rs[0] = x.rotation
-    R_i = list(Rs)                          # views: the least overhead per product
-    for i in range(n):
-        dot(R_i[i], steps[i], out=R_i[i + 1])
-    acc = np.matmul(Rs, a[:, :, None])[:, :, 0]
-    acc += g
-    dv = acc[:-1] + acc[1:]
-    dv *= 0.5 * dtc                         # ½(a_i + a_{i+1}) T
-    vs = np.empty((n + 1, 3))
-    vs[0] = 0.0
-    np.cumsum(dv, axis=0, out=vs[1:])
-    vs += x.velocity
-    dp = vs[:-1] + 0.5 * dv
-    dp *= dtc                               # v_i T + ¼(a_i + a_{i+1}) T²
-    ps = np.empty((n + 1, 3))
-    ps[0] = 0.0
-    np.cumsum(dp, axis=0, out=ps[1:])
-    ps += x.position
-    return ps, vs, Rs
 
 
 def _propagate(x: NominalState, P, f, w_mean, dt, q, g, bias_model: str):
@@ -390,7 +348,7 @@ def _propagate(x: NominalState, P, f, w_mean, dt, q, g, bias_model: str):
     """
     a = f - x.accel_bias
     w = w_mean - x.gyro_bias
-    ps, vs, Rs = _mechanise(x, a, w, dt, g)
+    ps, vs, Rs = integrate_midpoint(x.position, x.velocity, x.rotation, a, w, dt, g)
     R_start = Rs[:-1]
     F, B = _discretise(_error_dynamics(R_start, a[:-1], w), _noise_jacobian(R_start, bias_model), dt,
                        overwrite=True)
@@ -399,7 +357,7 @@ def _propagate(x: NominalState, P, f, w_mean, dt, q, g, bias_model: str):
 
 
 def _pose_residual(p_check, R_check, p_meas, R_meas) -> np.ndarray:
-    return np.concatenate([p_check - p_meas, so3.log(dot(R_meas.T, R_check))])
+    return np.concatenate([p_check - p_meas, so3.log(dot(R_meas.T, R_check), check=False)])
 
 
 def _position_residual(p_check, p_meas) -> np.ndarray:
@@ -415,7 +373,7 @@ def _gain(P, G, R):
 
 def _inject(x: NominalState, dx) -> NominalState:
     return NominalState(x.position - dx[IDX_P], x.velocity - dx[IDX_V],
-                        dot(x.rotation, so3.exp(-dx[IDX_TH])),
+                        dot(x.rotation, so3.exp(-dx[IDX_TH], check=False)),
                         x.accel_bias - dx[IDX_BA], x.gyro_bias - dx[IDX_BW])
 
 
@@ -425,14 +383,15 @@ def _reset_jacobian(dtheta) -> np.ndarray:
     return G
 
 
-def _reset_covariance(P, dtheta, exact: bool) -> np.ndarray:
+def _reset_covariance(P, dtheta, exact: bool, overwrite: bool = False) -> np.ndarray:
     """G_r P G_rᵀ (exact) or a copy of P. G_r (:func:`_reset_jacobian`) differs from I only in
     its attitude block J = J_l(δθ̂), so only the attitude rows and columns of P change:
-    J P[θ, :] and then P[:, θ] Jᵀ."""
-    P = P.copy()
+    J P[θ, :] and then P[:, θ] Jᵀ. ``overwrite`` lets a caller that owns P have it changed in place."""
+    if not overwrite:
+        P = P.copy()
     if not exact:
         return P
-    J = so3.left_jacobian(dtheta)
+    J = so3.left_jacobian(dtheta, check=False)
     P[IDX_TH] = dot(J, P[IDX_TH])
     P[:, IDX_TH] = dot(P[:, IDX_TH], J.T)
     return symmetrise(P)
@@ -447,7 +406,7 @@ def _correct(x: NominalState, P, y, G, R, exact_reset: bool, dx_prior=None):
     innovation = y if dx_prior is None else y - dot(G, dx_prior)
     dx = dot(K, innovation) if dx_prior is None else dx_prior + dot(K, innovation)
     P = joseph_update(P, K, G, R, _I15)
-    return _inject(x, dx), _reset_covariance(P, dx[IDX_TH], exact_reset), innovation, S
+    return _inject(x, dx), _reset_covariance(P, dx[IDX_TH], exact_reset, overwrite=True), innovation, S
 
 
 def _lidar_noise(config: EskfConfig) -> np.ndarray:
@@ -474,7 +433,7 @@ def error_dynamics(R, specific_force, angular_rate, accel_bias, gyro_bias) -> np
     accel_bias, gyro_bias : array_like, shape (3,)
         Nominal biases b_a (m/s²), b_ω (rad/s); subtracted from the readings.
     """
-    R = _as_rotation(R, "R")
+    R = as_rotation(R, "R")
     a = as_vector(specific_force, "specific_force", 3) - as_vector(accel_bias, "accel_bias", 3)
     w = as_vector(angular_rate, "angular_rate", 3) - as_vector(gyro_bias, "gyro_bias", 3)
     return _error_dynamics(R, a, w)
@@ -487,7 +446,7 @@ def noise_jacobian(R, bias_model: str = "random_walk") -> np.ndarray:
     the nominal attitude.
     """
     bias_model = _as_bias_model(bias_model)
-    return _noise_jacobian(_as_rotation(R, "R"), bias_model)
+    return _noise_jacobian(as_rotation(R, "R"), bias_model)
 
 
 def discretise(F_t, B_t, T: float) -> tuple[np.ndarray, np.ndarray]:
@@ -562,8 +521,8 @@ def pose_residual(p_check, R_check, p_meas, R_meas) -> np.ndarray:
 
     ``p_check``, ``p_meas`` (3,); ``R_check``, ``R_meas`` (3, 3) rotation matrices.
     """
-    return _pose_residual(as_vector(p_check, "p_check", 3), _as_rotation(R_check, "R_check"),
-                          as_vector(p_meas, "p_meas", 3), _as_rotation(R_meas, "R_meas"))
+    return _pose_residual(as_vector(p_check, "p_check", 3), as_rotation(R_check, "R_check"),
+                          as_vector(p_meas, "p_meas", 3), as_rotation(R_meas, "R_meas"))
 
 
 def position_residual(p_check, p_meas) -> np.ndarray:
@@ -630,7 +589,7 @@ def reset_covariance(P, dx, exact: bool = True) -> np.ndarray:
     """
     P = as_covariance(P, "P", 15)
     dx = as_vector(dx, "dx", 15)
-    return _reset_covariance(P, dx[IDX_TH], _as_flag(exact, "exact"))
+    return _reset_covariance(P, dx[IDX_TH], as_flag(exact, "exact"))
 
 
 def nominal_step(nominal: NominalState, f0, w0, f1, w1, dt: float, gravity) -> NominalState:
@@ -651,8 +610,9 @@ def nominal_step(nominal: NominalState, f0, w0, f1, w1, dt: float, gravity) -> N
     x = _as_nominal(nominal, "nominal")
     f = np.stack([as_vector(f0, "f0", 3), as_vector(f1, "f1", 3)])
     w_mean = 0.5 * (as_vector(w0, "w0", 3) + as_vector(w1, "w1", 3))
-    ps, vs, Rs = _mechanise(x, f - x.accel_bias, w_mean[None] - x.gyro_bias,
-                            np.array([as_scalar(dt, "dt")]), _as_gravity(gravity))
+    ps, vs, Rs = integrate_midpoint(x.position, x.velocity, x.rotation, f - x.accel_bias,
+                                    w_mean[None] - x.gyro_bias, np.array([as_scalar(dt, "dt")]),
+                                    _as_gravity(gravity))
     return NominalState(ps[1], vs[1], Rs[1], x.accel_bias.copy(), x.gyro_bias.copy())
 
 
@@ -715,7 +675,7 @@ class ESKF:
         w = np.stack([as_vector(w0, "w0", 3), as_vector(w1, "w1", 3)])
         dt = as_scalar(dt, "dt")
         cfg = self.config
-        density = cfg.interpolated_density if _as_flag(interpolated, "interpolated") else cfg.process_density
+        density = cfg.interpolated_density if as_flag(interpolated, "interpolated") else cfg.process_density
         q = _process_noise(density, dt, cfg.bias_model)
         self.nominal, self.P, Phi, _, _ = _propagate(self.nominal, self.P, f, 0.5 * (w[:1] + w[1:]),
                                                      np.array([dt]), q[None], self.gravity, cfg.bias_model)
@@ -919,8 +879,8 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
     lidar = _as_observations(lidar, "lidar", PoseObservations)
     gnss = _as_observations(gnss, "gnss", PositionObservations)
     P = initial_covariance(cfg) if P0 is None else np.array(as_covariance(P0, "P0", 15))
-    use_interpolation_flags = _as_flag(use_interpolation_flags, "use_interpolation_flags")
-    record_all = _as_flag(record_all, "record_all")
+    use_interpolation_flags = as_flag(use_interpolation_flags, "use_interpolation_flags")
+    record_all = as_flag(record_all, "record_all")
 
     t0, t1 = t_imu[0], t_imu[-1]
     step_flag = _imu_gaps(dt_imu, gap_factor)
@@ -928,12 +888,15 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
         step_flag |= flag_imu[:-1] | flag_imu[1:]
 
     # ---- events: (time, kind, index) with kind 0 = lidar, 1 = gnss, 2 = output only ----
+    sources = (None if lidar is None else lidar.t, None if gnss is None else gnss.t,
+               None if output_times is None else as_vector(output_times, "output_times"))
     ev_t, ev_kind, ev_idx = [np.zeros(0)], [np.zeros(0, int)], [np.zeros(0, int)]
-    for kind, times in enumerate((None if lidar is None else lidar.t, None if gnss is None else gnss.t,
-                                  None if output_times is None else as_vector(output_times, "output_times"))):
+    for kind, times in enumerate(sources):
         if times is not None:
             sel = np.nonzero((times > t0) & (times <= t1))[0]
-            ev_t.append(times[sel]), ev_kind.append(np.full(len(sel), kind)), ev_idx.append(sel)
+            ev_t.append(times[sel])
+            ev_kind.append(np.full(len(sel), kind))
+            ev_idx.append(sel)
     ev_t, ev_kind, ev_idx = np.concatenate(ev_t), np.concatenate(ev_kind), np.concatenate(ev_idx)
     order = np.lexsort((ev_kind, ev_t))
     ev_t, ev_kind, ev_idx = ev_t[order], ev_kind[order], ev_idx[order]
@@ -953,17 +916,16 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
     q = _process_noise(np.where(flags[:, None], cfg.interpolated_density, cfg.process_density),
                        dt_nodes, cfg.bias_model)
     ev_node = np.searchsorted(t_nodes, ev_t - tol)
+    # plain lists: the event loop reads them one element at a time
+    ev_node_l, ev_kind_l, ev_idx_l = ev_node.tolist(), ev_kind.tolist(), ev_idx.tolist()
 
     R_lidar, R_gnss = _lidar_noise(cfg), _gnss_noise(cfg)
     exact = cfg.exact_reset
 
     # outputs: one row per distinct event node
     out_nodes = np.unique(ev_node)
-    K_out = len(out_nodes)
-    o_p, o_v, o_ba, o_bw = (np.zeros((K_out, 3)) for _ in range(4))
-    o_R = np.zeros((K_out, 3, 3))
-    o_P = np.zeros((K_out, 15, 15))
-    o_upd = np.zeros(K_out, dtype=bool)
+    n_events = len(ev_node_l)
+    rows = []                   # (x, P, updated) at every output node
     innovations, S_list = [], []
     if record_all:
         all_p = np.zeros((len(t_nodes), 3))
@@ -972,7 +934,7 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
 
     e = 0                       # index into the sorted events
     node = 0
-    for oi, target in enumerate(out_nodes):
+    for target in out_nodes.tolist():
         if target > node:       # propagate node → target as one stack of steps
             sl = slice(node, target)
             x, P, _, ps, Rs = _propagate(x, P, f_nodes[node:target + 1], w_mean[sl], dt_nodes[sl], q[sl],
@@ -981,8 +943,8 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
                 all_p[node + 1:target + 1], all_R[node + 1:target + 1] = ps[1:], Rs[1:]
             node = target
         updated = False
-        while e < len(ev_t) and ev_node[e] == target:       # every observation at this node
-            kind, idx = ev_kind[e], ev_idx[e]
+        while e < n_events and ev_node_l[e] == target:       # every observation at this node
+            kind, idx = ev_kind_l[e], ev_idx_l[e]
             e += 1
             if kind == 0:
                 y = _pose_residual(x.position, x.rotation, lidar.position[idx], lidar.rotation[idx])
@@ -997,89 +959,17 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
             updated = True
         if record_all:
             all_p[target], all_R[target] = x.position, x.rotation
-        o_p[oi], o_v[oi], o_R[oi], o_ba[oi], o_bw[oi], o_P[oi] = (x.position, x.velocity, x.rotation,
-                                                                  x.accel_bias, x.gyro_bias, P)
-        o_upd[oi] = updated
+        rows.append((x, P, updated))
 
-    return EskfResult(t_nodes[out_nodes], o_p, o_v, o_R, o_ba, o_bw, o_P, o_upd, innovations, S_list,
+    states = [state for state, _, _ in rows]
+
+    def stacked(name, shape):
+        return np.array([getattr(state, name) for state in states]).reshape(-1, *shape)
+
+    return EskfResult(t_nodes[out_nodes], stacked("position", (3,)), stacked("velocity", (3,)),
+                      stacked("rotation", (3, 3)), stacked("accel_bias", (3,)), stacked("gyro_bias", (3,)),
+                      np.array([P_k for _, P_k, _ in rows]).reshape(-1, 15, 15),
+                      np.array([used for _, _, used in rows], dtype=bool), innovations, S_list,
                       t_nodes if record_all else np.zeros(0),
                       all_p if record_all else np.zeros((0, 3)),
                       all_R if record_all else np.zeros((0, 3, 3)))
-
-
-# ---------------------------------------------------------------------------------------
-# Evaluation against ground truth
-# ---------------------------------------------------------------------------------------
-
-def _angle(R: np.ndarray) -> np.ndarray:
-    c = 0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0)
-    s = 0.5 * np.linalg.norm(np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
-                                       R[..., 1, 0] - R[..., 0, 1]], -1), axis=-1)
-    return np.arctan2(s, c)
-
-
-def evaluate(t, position, rotation, truth, P=None, rpe_delta: float = 1.0) -> dict:
-    """Pose errors of an estimate against the truth at the same times.
-
-    Parameters
-    ----------
-    t : array_like, shape (K,)
-        Times of the estimate; each must be one of ``truth.t`` (within 1 µs).
-    position : array_like, shape (K, 3)
-    rotation : array_like, shape (K, 3, 3)
-    truth : TruthData
-    P : array_like, shape (K, 15, 15) or (K, 6, 6), optional
-        The filter covariance (or just its [δp, δθ] block), for the 6-dof pose NEES.
-    rpe_delta : float
-        Time separation of the relative pose error, s.
-
-    Returns
-    -------
-    dict
-        ``ape_position`` (RMSE of |p − p_true|, m), ``ape_attitude_deg`` (RMS rotation angle
-        of R_trueᵀ R, degrees), ``rpe_position`` and ``rpe_attitude_deg`` (RMSE of the
-        relative pose error over ``rpe_delta``), ``nees_pose`` (mean 6-dof NEES; NaN without
-        P), ``position_error`` (K, 3), ``attitude_error`` (K, 3) = Log(R_trueᵀ R) (nominal −
-        true, rad), ``nees`` (K,).
-    """
-    t = np.asarray(t, dtype=float)
-    p = np.asarray(position, dtype=float)
-    Rm = np.asarray(rotation, dtype=float)
-    k = np.searchsorted(truth.t, t - 1e-6)
-    k = np.clip(k, 0, len(truth.t) - 1)
-    if np.any(np.abs(truth.t[k] - t) > 1e-6):
-        raise ValueError("evaluate needs estimates at the truth's times")
-    pt, Rt = truth.position[k], truth.rotation[k]
-    ep = p - pt
-    dR = np.swapaxes(Rt, -1, -2) @ Rm
-    eth = so3.log(dR)
-    out = {
-        "ape_position": float(np.sqrt(np.mean(np.sum(ep ** 2, axis=1)))),
-        "ape_attitude_deg": float(np.rad2deg(np.sqrt(np.mean(_angle(dR) ** 2)))),
-        "position_error": ep,
-        "attitude_error": eth,
-    }
-    # relative pose error over rpe_delta seconds
-    j = np.searchsorted(t, t + rpe_delta - 1e-3)
-    ok = j < len(t)
-    i, j = np.nonzero(ok)[0], j[ok]
-    Rti, Rtj, Ri, Rj = Rt[i], Rt[j], Rm[i], Rm[j]
-    rel_t_p = np.einsum("kji,kj->ki", Rti, pt[j] - pt[i])
-    rel_e_p = np.einsum("kji,kj->ki", Ri, p[j] - p[i])
-    rel_t_R = np.swapaxes(Rti, -1, -2) @ Rtj
-    rel_e_R = np.swapaxes(Ri, -1, -2) @ Rj
-    out["rpe_position"] = float(np.sqrt(np.mean(np.sum((rel_e_p - rel_t_p) ** 2, axis=1))))
-    out["rpe_attitude_deg"] = float(np.rad2deg(np.sqrt(np.mean(
-        _angle(np.swapaxes(rel_t_R, -1, -2) @ rel_e_R) ** 2))))
-    if P is not None:
-        P = np.asarray(P, dtype=float)
-        idx = [0, 1, 2, 6, 7, 8]
-        Pp = P if P.shape[-1] == 6 else P[:, idx][:, :, idx]
-        e6 = np.concatenate([ep, eth], axis=1)
-        nees = np.einsum("ki,ki->k", e6, np.linalg.solve(Pp, e6[..., None])[..., 0])
-        out["nees"] = nees
-        out["nees_pose"] = float(np.mean(nees))
-    else:
-        out["nees"] = np.full(len(t), np.nan)
-        out["nees_pose"] = float("nan")
-    return out

@@ -26,7 +26,7 @@ Kinds
 The filter (:mod:`kalman_course.filters.eskf`) only ever sees SI values (m, m/s, rad, densities);
 :func:`load_config` converts degrees and per-sample numbers once, here.
 
-Shipped files (``kalman_course/eskf_configs/``): ``kitti_lidar.yaml`` (10 Hz lidar
+Shipped files (``kalman_course/filters/eskf_configs/``): ``kitti_lidar.yaml`` (10 Hz lidar
 map-matching poses) and ``kitti_gnss.yaml`` (1 Hz GNSS positions). Load them by name::
 
     from kalman_course.filters.eskf_config import load_config
@@ -160,7 +160,12 @@ class EskfConfig:
 
     @property
     def interpolated_density(self) -> np.ndarray:
-        """Densities used on IMU steps flagged as interpolated, shape (4,)."""
+        """Densities used on IMU steps flagged as interpolated or bridging a gap, shape (4,).
+
+        :func:`kalman_course.filters.eskf.run` uses them on steps touching an interpolated
+        sample (``imu.interpolated``) and on gaps in the IMU clock (a step longer than
+        ``gap_factor`` median steps).
+        """
         return np.array([self.si("interpolated_imu.accel_noise"), self.si("interpolated_imu.gyro_noise"),
                          self.si("process.accel_bias_noise"), self.si("process.gyro_bias_noise")])
 
