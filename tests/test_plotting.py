@@ -152,7 +152,7 @@ def test_samples_and_consistency(ax):
 
 
 @pytest.mark.parametrize("call, match", [
-    (lambda ax: plotting.plot_truth(ax, [0, 1, 2], [1, 2]), "length 3"),
+    (lambda ax: plotting.plot_truth(ax, [0, 1, 2], [1, 2]), r"x must have shape \(3,\)"),
     (lambda ax: plotting.plot_truth(ax, [[0, 1], [1, 2]], [1, 2]), "1-D"),
     (lambda ax: plotting.plot_estimate(ax, [0, 1], [np.nan, 1]), "NaN"),
     (lambda ax: plotting.plot_measurements(ax, [0, 1], [np.inf, 1]), "inf"),
@@ -161,13 +161,13 @@ def test_samples_and_consistency(ax):
     (lambda ax: plotting.plot_sigma_band(ax, [0, 1], [0, 0], [1, 1], n_sigma=0), "n_sigma"),
     (lambda ax: plotting.plot_sigma_band(ax, [0, 1], [0, 0, 0], 1.0), "center"),
     (lambda ax: plotting.plot_error_with_band(ax, [0, 1], [0, 1], [1, 1, 1]), "sigma"),
-    (lambda ax: plotting.plot_covariance_ellipse(ax, [0, 0], np.eye(3)), "2x2"),
+    (lambda ax: plotting.plot_covariance_ellipse(ax, [0, 0], np.eye(3)), r"cov must have shape \(2, 2\)"),
     (lambda ax: plotting.plot_covariance_ellipse(ax, [0, 0, 0], np.eye(2)), "mean"),
     (lambda ax: plotting.plot_covariance_ellipse(ax, [0, 0], [[1, 0.5], [0, 1]]), "symmetric"),
     (lambda ax: plotting.plot_covariance_ellipse(ax, [0, 0], [[1, 2], [2, 1]]), "semi-definite"),
     (lambda ax: plotting.plot_covariance_ellipse(ax, [0, 0], [[np.nan, 0], [0, 1]]), "finite"),
     (lambda ax: plotting.plot_belief(ax, [0.5, -0.1]), "non-negative"),
-    (lambda ax: plotting.plot_belief(ax, []), "at least one"),
+    (lambda ax: plotting.plot_belief(ax, []), "belief must not be empty"),
     (lambda ax: plotting.plot_belief(ax, [1, 2], positions=[1]), "positions"),
     (lambda ax: plotting.plot_samples(ax, np.zeros((3, 3))), r"\(N, 2\)"),
     (lambda ax: plotting.plot_consistency(ax, [0, 1], [1, 1], 2.0, 1.0), "lo <= hi"),

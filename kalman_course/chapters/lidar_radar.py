@@ -25,6 +25,7 @@ import numpy as np
 
 from kalman_course import symbolic
 from kalman_course.core.angles import wrap_angle
+from kalman_course.core.linalg import symmetrise
 from kalman_course.core.validation import as_covariance, as_scalar, as_seed, as_vector
 from kalman_course.evaluation.metrics import position_rmse, rmse
 from kalman_course.filters.ekf import (LIDAR_G, ekf_predict, ekf_update, iekf_update, lidar_observation,
@@ -399,7 +400,7 @@ def radar_position_fix(z_radar, R_radar):
     c, s = np.cos(phi), np.sin(phi)
     J = np.array([[c, -rho * s], [s, rho * c]])
     R_p = J @ R[:2, :2] @ J.T
-    return rho * np.array([c, s]), 0.5 * (R_p + R_p.T)
+    return rho * np.array([c, s]), symmetrise(R_p)
 
 
 @dataclass(frozen=True, eq=False)

@@ -14,6 +14,8 @@ import numpy as np
 
 from kalman_course.filters import eskf
 from kalman_course.core import so3
+from kalman_course.core.linalg import symmetrise
+from kalman_course.evaluation.metrics import position_rmse
 from kalman_course.checks.harness import CheckFailed, call, check, expect_close, expect_shape, expect_symmetric
 from kalman_course.data import load_kitti
 from kalman_course.filters.eskf import NominalState
@@ -152,7 +154,7 @@ def check_eskf_propagate(propagate_covariance):
         got = expect_shape(call(propagate_covariance, P, F, B, Q), (15, 15), "P_check")
         ref = eskf.propagate_covariance(P, F, B, Q)
         expect_symmetric(got, "P_check")
-        if np.linalg.eigvalsh(0.5 * (got + got.T)).min() <= 0.0:
+        if np.linalg.eigvalsh(symmetrise(got)).min() <= 0.0:
             raise CheckFailed("P_check is not positive definite")
         half = F @ P @ F
         expect_close(got, ref, "P_check", rtol=1e-9, atol=1e-15, mistakes=[
@@ -211,7 +213,7 @@ def check_eskf_covariance_update(update_covariance):
         for K, label in ((K_opt, "the optimal gain"), (0.7 * K_opt, "a sub-optimal gain 0.7 K")):
             got = call(update_covariance, P, K, G, R)
             expect_symmetric(got, "P_hat")
-            if np.linalg.eigvalsh(0.5 * (np.asarray(got) + np.asarray(got).T)).min() < 0.0:
+            if np.linalg.eigvalsh(symmetrise(np.asarray(got, dtype=float))).min() < 0.0:
                 raise CheckFailed("P_hat is not positive semi-definite")
             ref = eskf.update_covariance(P, K, G, R)
             A = np.eye(15) - K @ G
@@ -292,8 +294,8 @@ def check_eskf_run(run_eskf):
     expect_close(t, ref.t, "the update times", atol=1e-9)
     p = expect_shape(result[1], ref.position.shape, "positions")
     truth = ex.truth.position[np.searchsorted(ex.truth.t, ref.t - 1e-6)]
-    err = np.sqrt(np.mean(np.sum((p - truth) ** 2, axis=1)))
-    err_ref = np.sqrt(np.mean(np.sum((ref.position - truth) ** 2, axis=1)))
+    err = position_rmse(p, truth)
+    err_ref = position_rmse(ref.position, truth)
     expect_close(p, ref.position, f"positions on the first {RUN_SECONDS:.0f} s of '{RUN_EXCERPT}'",
                  rtol=0.0, atol=1e-6,
                  hint=f"your position RMSE against ground truth is {err:.4f} m, the reference's "

@@ -503,7 +503,7 @@ def block_inverse(M, k):
     S = schur_complement(M, k)
     try:
         D_inv = np.linalg.solve(D, np.eye(D.shape[0]))
-        S_inv = np.linalg.solve(S, np.eye(k))
+        S_inv = np.linalg.solve(S, np.eye(k))      # S: the Schur complement here
     except np.linalg.LinAlgError:
         raise ValueError("M must have an invertible Schur complement A - B D^-1 C "
                          "(it is singular, so M is singular)") from None

@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from kalman_course.core.linalg import symmetrise
+
 #: Relative tolerance used to decide that a covariance is symmetric.
 SYMMETRY_RTOL = 1e-9
 
@@ -310,8 +312,8 @@ def as_covariance(value, name: str, n: int | None = None, *, psd: bool = False,
         except np.linalg.LinAlgError:
             raise ValueError(f"{name} must be positive definite (Cholesky failed; "
                              f"smallest eigenvalue {np.linalg.eigvalsh(arr).min():.3g})") from None
-    elif psd and not _is_psd(0.5 * (arr + arr.T)):
-        eigenvalues = np.linalg.eigvalsh(0.5 * (arr + arr.T))
+    elif psd and not _is_psd(symmetrise(arr)):
+        eigenvalues = np.linalg.eigvalsh(symmetrise(arr))
         raise ValueError(f"{name} must be positive semi-definite (a covariance): its smallest "
                          f"eigenvalue is {eigenvalues[0]:.3g}, its largest {eigenvalues[-1]:.3g}")
     return arr

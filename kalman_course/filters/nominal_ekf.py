@@ -31,6 +31,7 @@ import numpy as np
 import sympy as sp
 
 from kalman_course.core import so3
+from kalman_course.core.imu import integrate_midpoint
 from kalman_course.core.linalg import gain, innovation_covariance, joseph_update, symmetrise
 from kalman_course.core.observations import PoseObservations
 from kalman_course.core.validation import as_scalar, as_vector
@@ -119,11 +120,12 @@ def propagate(x: np.ndarray, f0, w0, f1, w1, dt: float, g) -> np.ndarray:
     f0, f1 = as_vector(f0, "f0", 3), as_vector(f1, "f1", 3)
     w0, w1 = as_vector(w0, "w0", 3), as_vector(w1, "w1", 3)
     dt, g = as_scalar(dt, "dt"), as_vector(g, "g", 3)
-    q1 = so3.quat_normalise(so3.quat_multiply(q, so3.quat_exp((0.5 * (w0 + w1) - b_w) * dt)))
-    a0 = so3.quat_to_matrix(q) @ (f0 - b_a) + g
-    a1 = so3.quat_to_matrix(q1) @ (f1 - b_a) + g
-    am = 0.5 * (a0 + a1)
-    return np.concatenate([p + v * dt + 0.5 * am * dt * dt, v + am * dt, q1, b_a, b_w])
+    w_mean = 0.5 * (w0 + w1) - b_w
+    # position and velocity by the course's one midpoint kernel; the attitude kept as q
+    ps, vs, _ = integrate_midpoint(p, v, so3.quat_to_matrix(q), np.stack([f0 - b_a, f1 - b_a]), w_mean[None],
+                                   np.array([dt]), g)
+    q1 = so3.quat_normalise(so3.quat_multiply(q, so3.quat_exp(w_mean * dt)))
+    return np.concatenate([ps[1], vs[1], q1, b_a, b_w])
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,11 @@ argument.
 from __future__ import annotations
 
 import types
+
 import numpy as np
+
+from kalman_course.core.linalg import symmetrise
+from kalman_course.core.validation import as_covariance, as_matrix, as_real_array, as_scalar, as_vector
 
 __all__ = [
     "COLORS",
@@ -65,31 +69,13 @@ CURVE_COLORS = (COLORS["estimate"], COLORS["prior"], COLORS["likelihood"], COLOR
 # --------------------------------------------------------------------------------------
 
 def _vector(value, name: str, *, allow_nan: bool = False, n: int | None = None) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a 1-D array of numbers, got {type(value).__name__}") from None
-    if arr.ndim == 2 and 1 in arr.shape and arr.size > 0:
+    """A 1-D float array (an (N, 1) column is flattened); NaN marks a gap where ``allow_nan``."""
+    arr = as_real_array(value, name)
+    if arr.ndim == 2 and 1 in arr.shape:
         arr = arr.reshape(-1)  # accept (N, 1) columns such as ys[:, None]
-    if arr.ndim != 1:
-        raise ValueError(f"{name} must be 1-D, got shape {arr.shape}")
-    if n is not None and arr.shape[0] != n:
-        raise ValueError(f"{name} must have length {n} (as t), got {arr.shape[0]}")
-    bad = np.isinf(arr) if allow_nan else ~np.isfinite(arr)
-    if np.any(bad):
-        what = "inf" if allow_nan else "NaN or inf"
-        raise ValueError(f"{name} must not contain {what}")
+    # the shared validator applies every rule but the NaN one, which is the plot's to make
+    as_vector(np.where(np.isnan(arr), 0.0, arr) if allow_nan else arr, name, n)
     return arr
-
-
-def _check_n_sigma(n_sigma) -> float:
-    try:
-        value = float(n_sigma)
-    except (TypeError, ValueError):
-        raise ValueError(f"n_sigma must be a positive number, got {n_sigma!r}") from None
-    if not np.isfinite(value) or value <= 0:
-        raise ValueError(f"n_sigma must be a positive number, got {n_sigma!r}")
-    return value
 
 
 def _sigma(value, name: str, n: int) -> np.ndarray:
@@ -103,19 +89,7 @@ def _sigma(value, name: str, n: int) -> np.ndarray:
 
 
 def _covariance2(cov, name: str = "cov") -> np.ndarray:
-    arr = np.asarray(cov, dtype=float)
-    if arr.shape != (2, 2):
-        raise ValueError(f"{name} must be a 2x2 covariance matrix, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite")
-    scale = max(np.max(np.abs(arr)), 1e-300)
-    if abs(arr[0, 1] - arr[1, 0]) > 1e-9 * scale:
-        raise ValueError(f"{name} must be symmetric, |{name}[0,1] - {name}[1,0]| = "
-                         f"{abs(arr[0, 1] - arr[1, 0]):.3g}")
-    eig = np.linalg.eigvalsh(0.5 * (arr + arr.T))
-    if eig[0] < -1e-12 * scale:
-        raise ValueError(f"{name} must be positive semi-definite, smallest eigenvalue {eig[0]:.3g}")
-    return 0.5 * (arr + arr.T)
+    return symmetrise(as_covariance(cov, name, 2, psd=True))
 
 
 def _with_defaults(kwargs: dict, **defaults) -> dict:
@@ -240,7 +214,7 @@ def plot_sigma_band(ax, t, center, sigma, n_sigma=3, *, label=None, **kwargs):
     c = np.asarray(center, dtype=float)
     c = _vector(np.full(n, float(c)) if c.ndim == 0 else c, "center", n=n)
     s = _sigma(sigma, "sigma", n)
-    k = _check_n_sigma(n_sigma)
+    k = as_scalar(n_sigma, "n_sigma")
     if label is None:
         label = f"±{k:g}σ"
     return ax.fill_between(t, c - k * s, c + k * s,
@@ -301,7 +275,7 @@ def covariance_ellipse_axes(cov, n_sigma=3):
         the first axis, ``height = 2 n_sigma sqrt(λ_min)`` across it.
     """
     cov = _covariance2(cov)
-    k = _check_n_sigma(n_sigma)
+    k = as_scalar(n_sigma, "n_sigma")
     vals, vecs = np.linalg.eigh(cov)
     vals = np.clip(vals, 0.0, None)
     major = vecs[:, 1]
@@ -610,16 +584,10 @@ def plot_curves(ax, curves, *, colors=None, lw=1.0):
 
 
 def _points(value, name: str, *, allow_nan: bool = False) -> np.ndarray:
-    """(N, 2) or (N, 3) positions as a float array (N, >= 2)."""
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be an array of positions of shape (N, 2) or (N, 3)") from None
-    if arr.ndim != 2 or arr.shape[1] not in (2, 3):
+    """(N, 2) or (N, 3) positions as a float array; all-NaN rows are gaps where ``allow_nan``."""
+    arr = as_matrix(value, name, ("N", None), missing_rows=allow_nan)
+    if arr.shape[1] not in (2, 3):
         raise ValueError(f"{name} must have shape (N, 2) or (N, 3), got {arr.shape}")
-    bad = np.isinf(arr) if allow_nan else ~np.isfinite(arr)
-    if np.any(bad):
-        raise ValueError(f"{name} must not contain {'inf' if allow_nan else 'NaN or inf'}")
     return arr
 
 
