@@ -15,7 +15,7 @@ import numpy as np
 from kalman_course.chapters import consistency
 from kalman_course.filters import eskf
 from kalman_course.evaluation import metrics
-from kalman_course.evaluation.consistency import gate_threshold, verdict
+from kalman_course.evaluation import consistency as consistency_stats
 from kalman_course.evaluation.pose import POSE_INDEX, evaluate
 from kalman_course.checks.harness import CheckFailed, call, check, expect_close
 from kalman_course.data import load_kitti
@@ -77,7 +77,7 @@ def gate_cases():
     for i, factor in zip(range(10, 60, 10), (0.97, 1.03, 0.9, 1.1, 0.99)):
         for dims in (slice(0, 6), slice(0, 3)):
             y, S = run.innovation[i][dims], run.S[i][dims, dims]
-            target = factor * gate_threshold(len(y), 0.99)
+            target = factor * consistency_stats.gate_threshold(len(y), 0.99)
             cases.append((y * math.sqrt(target / metrics.nis(y, S)), S))
     return tuple(cases)
 
@@ -207,7 +207,7 @@ def check_consistency_verdict(verdict):
     """The learner's ``verdict(nis_values, dof, confidence)`` on NIS records of three KITTI runs."""
     for label, values in verdict_cases():
         answer = call(verdict, values, 6, 0.95)
-        ref = verdict(values, 6, 0.95)
+        ref = consistency_stats.verdict(values, 6, 0.95)
         if answer != ref:
             lo, hi = metrics.chi2_bounds(6, len(values), 0.95)
             raise CheckFailed(
