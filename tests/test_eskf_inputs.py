@@ -22,6 +22,9 @@ R_REFLECTION = R_GOOD @ np.diag([1.0, 1.0, -1.0])
 P_GOOD = np.diag(np.arange(1.0, 16.0)) * 1e-2
 P_ASYMMETRIC = P_GOOD.copy()
 P_ASYMMETRIC[0, 1] = 0.3
+# symmetric, non-negative diagonal, but indefinite: a variance-covariance pair no Gaussian has
+P_INDEFINITE = P_GOOD.copy()
+P_INDEFINITE[0, 1] = P_INDEFINITE[1, 0] = 2.0 * np.sqrt(P_GOOD[0, 0] * P_GOOD[1, 1])
 X = NominalState(np.zeros(3), np.ones(3), R_GOOD)
 X_NAN = NominalState(NAN3, np.ones(3), R_GOOD)
 X_SHEARED = NominalState(np.zeros(3), np.ones(3), R_SHEARED)
@@ -48,6 +51,8 @@ CASES = [
      lambda: _filter().predict(*[np.zeros(3)] * 4, 0.01, interpolated="yes"),
      r"^interpolated "),
     ("ESKF non-symmetric P0", lambda: eskf.ESKF("kitti_lidar", X, G, P0=P_ASYMMETRIC), r"^P0 must be symmetric"),
+    ("ESKF indefinite P0", lambda: eskf.ESKF("kitti_lidar", X, G, P0=P_INDEFINITE),
+     r"^P0 must be positive semi-definite"),
     ("ESKF P0 wrong shape", lambda: eskf.ESKF("kitti_lidar", X, G, P0=np.eye(6)), r"^P0 "),
     ("ESKF NaN initial state", lambda: eskf.ESKF("kitti_lidar", X_NAN, G), r"^initial.position "),
     ("ESKF initial rotation not a rotation",
@@ -241,6 +246,7 @@ RUN_CASES = [
     ("NaN gravity", lambda ex: {"gravity": np.array([0.0, 0.0, np.nan])}, r"^gravity\[2\] is NaN"),
     ("gravity shape", lambda ex: {"gravity": np.zeros(2)}, r"^gravity must have shape \(3,\)"),
     ("non-symmetric P0", lambda ex: {"P0": P_ASYMMETRIC}, r"^P0 must be symmetric"),
+    ("indefinite P0", lambda ex: {"P0": P_INDEFINITE}, r"^P0 must be positive semi-definite"),
     ("start out of range", lambda ex: {"start": 10 ** 6}, r"^start must be"),
     ("start not an integer", lambda ex: {"start": 1.5}, r"^start must be"),
     ("NaN t_end", lambda ex: {"t_end": np.nan}, r"^t_end must be a finite time"),

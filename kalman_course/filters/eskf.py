@@ -509,7 +509,7 @@ def propagate_covariance(P, F, B, Q) -> np.ndarray:
     Q : array_like, shape (k, k)
         Symmetric.
     """
-    P = as_covariance(P, "P", 15)
+    P = as_covariance(P, "P", 15, psd=True)
     F = as_matrix(F, "F", (15, 15))
     B = as_matrix(B, "B", (15, None))
     Q = as_covariance(Q, "Q", B.shape[1])
@@ -545,7 +545,7 @@ def kalman_gain(P, G, R) -> np.ndarray:
     -------
     numpy.ndarray, shape (n, m)
     """
-    P = as_covariance(P, "P")
+    P = as_covariance(P, "P", psd=True)
     G = as_matrix(G, "G", (None, P.shape[0]))
     R = as_covariance(R, "R", G.shape[0], positive_definite=True)
     return _gain(P, G, R)[0]
@@ -556,7 +556,7 @@ def update_covariance(P, K, G, R) -> np.ndarray:
 
     ``P`` (n, n), ``K`` (n, m), ``G`` (m, n), ``R`` (m, m); valid for any gain K.
     """
-    P = as_covariance(P, "P")
+    P = as_covariance(P, "P", psd=True)
     n = P.shape[0]
     G = as_matrix(G, "G", (None, n))
     K = as_matrix(K, "K", (n, G.shape[0]))
@@ -587,7 +587,7 @@ def reset_covariance(P, dx, exact: bool = True) -> np.ndarray:
 
     ``P`` (15, 15) symmetric, ``dx`` (15,) the injected δx̂, ``exact`` a bool.
     """
-    P = as_covariance(P, "P", 15)
+    P = as_covariance(P, "P", 15, psd=True)
     dx = as_vector(dx, "dx", 15)
     return _reset_covariance(P, dx[IDX_TH], as_flag(exact, "exact"))
 
@@ -652,7 +652,7 @@ class ESKF:
         self.nominal = _as_nominal(initial, "initial")
         self.gravity = _as_gravity(gravity)
         self.P = (initial_covariance(self.config) if P0 is None
-                  else np.array(as_covariance(P0, "P0", 15)))
+                  else np.array(as_covariance(P0, "P0", 15, psd=True)))
         self.dx = np.zeros(15)
 
     def predict(self, f0, w0, f1, w1, dt: float, interpolated: bool = False) -> None:
@@ -878,7 +878,7 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
         gap_factor = as_scalar(gap_factor, "gap_factor")
     lidar = _as_observations(lidar, "lidar", PoseObservations)
     gnss = _as_observations(gnss, "gnss", PositionObservations)
-    P = initial_covariance(cfg) if P0 is None else np.array(as_covariance(P0, "P0", 15))
+    P = initial_covariance(cfg) if P0 is None else np.array(as_covariance(P0, "P0", 15, psd=True))
     use_interpolation_flags = as_flag(use_interpolation_flags, "use_interpolation_flags")
     record_all = as_flag(record_all, "record_all")
 
