@@ -72,15 +72,6 @@ def test_an_eskf_run_scores_as_before_the_move(run, cruise):
     assert 0.0 < got["ape_position"] < 2.0 and np.isfinite(got["nees"]).all()
 
 
-def test_it_matches_the_old_filters_function_while_that_exists(run, cruise):
-    if not hasattr(eskf, "evaluate"):
-        pytest.skip("eskf.evaluate has been removed; the oracle above is the old code")
-    got = evaluate(run.t, run.position, run.rotation, cruise.truth, run.P)
-    old = eskf.evaluate(run.t, run.position, run.rotation, cruise.truth, run.P)
-    for key in old:
-        np.testing.assert_allclose(got[key], old[key], rtol=1e-13, atol=0, err_msg=key)
-
-
 def test_the_truth_itself_has_no_error(cruise):
     tr = cruise.truth
     m = evaluate(tr.t, tr.position, tr.rotation, tr, np.broadcast_to(np.eye(6), (len(tr), 6, 6)))

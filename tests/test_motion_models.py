@@ -179,7 +179,7 @@ def test_model_derivations_are_registered_and_prove(name):
     assert d.verify()
 
 
-@pytest.mark.parametrize("model, name", zip(MODELS, ["cv_planar_model", "ca_model", "ctrv_model", "ctra_model"]))
+@pytest.mark.parametrize("model, name", list(zip(MODELS, ["cv_planar_model", "ca_model", "ctrv_model", "ctra_model"])))
 def test_state_names_are_the_derivations_state(model, name):
     d = symbolic.derivation(name)
     state = [str(s) for s in d["initial"].rhs]  # f(x, 0, 0) = x
