@@ -34,21 +34,29 @@ CHECK_PREFIX = "check_"
 _REGISTRY: dict[str, Callable] = {}
 
 
-def check(fn: Callable) -> Callable:
+def check(fn: Callable | None = None, *, uses: tuple[str, ...] = ()) -> Callable:
     """Decorate ``check_<name>`` as the grader check ``<name>`` and register it.
 
     The wrapped check prints the constant line ``<name>: passed`` on success and prefixes
-    every :class:`CheckFailed` message with ``<name>: ``.
+    every :class:`CheckFailed` message with ``<name>: ``. Written ``@check``, or
+    ``@check(uses=("kf_gain",))`` for a check whose learner function calls other graded
+    learner functions.
 
     Parameters
     ----------
     fn : callable
         The check; its ``__name__`` must be ``check_<name>`` with a non-empty ``<name>``.
+    uses : tuple of str
+        Names of graded learner functions that the learner's function may call, each also
+        the name of the check that grades it (``kf_gain``). When this check fails, each
+        one found in the learner's namespace (the ``__globals__`` of the function handed
+        in) is run through its own check first; if that fails, the message says to fix it
+        first, instead of blaming the function under test for a mistake made upstream.
 
     Returns
     -------
     callable
-        The wrapped check, with attribute ``check_name`` = ``<name>``.
+        The wrapped check, with attributes ``check_name`` = ``<name>`` and ``uses``.
 
     Raises
     ------
@@ -57,6 +65,8 @@ def check(fn: Callable) -> Callable:
         under ``<name>`` (a second module defining the same check, or a module imported
         twice under two names: either way, ``checks.<name>`` would be ambiguous).
     """
+    if fn is None:
+        return functools.partial(check, uses=tuple(uses))
     if not callable(fn) or not getattr(fn, "__name__", "").startswith(CHECK_PREFIX) \
             or fn.__name__ == CHECK_PREFIX:
         raise ValueError(f"@check decorates a function named {CHECK_PREFIX}<name>, "
@@ -68,12 +78,41 @@ def check(fn: Callable) -> Callable:
         try:
             fn(*args, **kwargs)
         except CheckFailed as exc:
+            upstream = _failing_dependency(uses, args)
+            if upstream is not None:
+                raise CheckFailed(f"{name}: {upstream}") from None
             raise CheckFailed(f"{name}: {exc}") from None
         print(SUCCESS.format(name=name))
 
     run.check_name = name
+    run.uses = tuple(uses)
     _register(name, run)
     return run
+
+
+def _failing_dependency(uses: tuple[str, ...], args: tuple) -> str | None:
+    """The message for the first used learner function that fails its own check, or None.
+
+    The learner's functions are looked up in the namespace of the function under test
+    (its ``__globals__``: the notebook's namespace), so the check sees exactly the
+    ``kf_gain`` that the learner's ``kf_update`` calls.
+    """
+    namespace = getattr(args[0], "__globals__", None) if args else None
+    if not uses or not isinstance(namespace, dict):
+        return None
+    for dependency in uses:
+        learner_fn = namespace.get(dependency)
+        dependency_check = _REGISTRY.get(dependency)
+        if not callable(learner_fn) or dependency_check is None:
+            continue
+        try:
+            with contextlib.redirect_stdout(io.StringIO()):
+                dependency_check(learner_fn)
+        except CheckFailed as exc:
+            first_line = str(exc).split("\n")[0]
+            return (f"your {dependency} fails its own check, and this function uses it: fix "
+                    f"{dependency} first ({first_line})")
+    return None
 
 
 def _register(name: str, wrapped: Callable) -> None:

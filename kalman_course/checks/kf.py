@@ -109,7 +109,7 @@ def check_kf_gain(kf_gain):
         ], hint="K = P̌ Gᵀ (G P̌ Gᵀ + R)⁻¹")
 
 
-@check
+@check(uses=("kf_gain",))
 def check_kf_update(kf_update):
     """The learner's ``kf_update(x_check, P_check, y, G, R)`` returns (x_hat, P_hat)."""
     for x_check, P_check, y, G, R in _update_cases():

@@ -1,0 +1,44 @@
+"""Every plausible mistake in the catalogues fails the check it targets, with a hint that
+names it; every correct variant passes. See ``tests/mutation_harness.py``."""
+
+import pytest
+
+from mutation_harness import catalogues, solution
+
+CATALOGUES = catalogues()
+
+
+def _cases(kind: str):
+    for stem, module in CATALOGUES.items():
+        for k, edit in enumerate(getattr(module, kind, ())):
+            yield pytest.param(module.NOTEBOOK, edit, id=f"{stem}-{edit.check}-{k}")
+
+
+@pytest.mark.parametrize("notebook, mutant", list(_cases("MUTANTS")))
+def test_mutant_fails_its_check_with_a_hint_that_names_it(notebook, mutant):
+    outcome = solution(notebook).grade(mutant)
+    assert not outcome.passed, f"{mutant.check} passes a mutant: {mutant.mistake}"
+    assert mutant.keyword.lower() in outcome.message.lower(), (
+        f"{mutant.check} rejects '{mutant.mistake}' but its message does not name it "
+        f"(keyword {mutant.keyword!r}): {outcome.message}")
+
+
+@pytest.mark.parametrize("notebook, variant", list(_cases("EQUIVALENTS")))
+def test_correct_variant_passes(notebook, variant):
+    outcome = solution(notebook).grade(variant)
+    assert outcome.passed, f"{variant.check} rejects a correct variant ({variant.mistake}): {outcome.message}"
+
+
+@pytest.mark.parametrize("notebook, edit", list(_cases("EQUIVALENT_MUTANTS")))
+def test_listed_equivalent_mutant_is_really_equivalent(notebook, edit):
+    # an edit listed as unable to change any result must indeed pass; if a check starts
+    # rejecting it, it was not equivalent and belongs in MUTANTS
+    outcome = solution(notebook).grade(edit)
+    assert outcome.passed, f"{edit.check}: listed as equivalent ({edit.reason}) but rejected: {outcome.message}"
+
+
+def test_every_graded_check_has_mutants():
+    graded = {(module.NOTEBOOK, check) for module in CATALOGUES.values()
+              for check in solution(module.NOTEBOOK).grader_call}
+    covered = {(module.NOTEBOOK, edit.check) for module in CATALOGUES.values() for edit in module.MUTANTS}
+    assert sorted(graded - covered) == []
