@@ -34,7 +34,7 @@ CHECK_PREFIX = "check_"
 _REGISTRY: dict[str, Callable] = {}
 
 
-def check(fn: Callable | None = None, *, uses: tuple[str, ...] = ()) -> Callable:
+def check(fn: Callable | None = None, *, uses: tuple[str, ...] | dict[str, str] = ()) -> Callable:
     """Decorate ``check_<name>`` as the grader check ``<name>`` and register it.
 
     The wrapped check prints the constant line ``<name>: passed`` on success and prefixes
@@ -46,12 +46,14 @@ def check(fn: Callable | None = None, *, uses: tuple[str, ...] = ()) -> Callable
     ----------
     fn : callable
         The check; its ``__name__`` must be ``check_<name>`` with a non-empty ``<name>``.
-    uses : tuple of str
-        Names of graded learner functions that the learner's function may call, each also
-        the name of the check that grades it (``kf_gain``). When this check fails, each
-        one found in the learner's namespace (the ``__globals__`` of the function handed
-        in) is run through its own check first; if that fails, the message says to fix it
-        first, instead of blaming the function under test for a mistake made upstream.
+    uses : tuple of str, or dict of str to str
+        The graded learner functions that the learner's function may call: their names,
+        when each is also the name of the check that grades it (``("kf_gain",)``), or a
+        mapping from the learner function's name to its check's name
+        (``{"kalman_gain": "eskf_gain"}``). When this check fails, each one found in the
+        learner's namespace (the ``__globals__`` of the function handed in) is run through
+        its own check first; if that fails, the message says to fix it first, instead of
+        blaming the function under test for a mistake made upstream.
 
     Returns
     -------
@@ -65,8 +67,9 @@ def check(fn: Callable | None = None, *, uses: tuple[str, ...] = ()) -> Callable
         under ``<name>`` (a second module defining the same check, or a module imported
         twice under two names: either way, ``checks.<name>`` would be ambiguous).
     """
+    uses = dict(uses) if isinstance(uses, dict) else {name: name for name in uses}
     if fn is None:
-        return functools.partial(check, uses=tuple(uses))
+        return functools.partial(check, uses=uses)
     if not callable(fn) or not getattr(fn, "__name__", "").startswith(CHECK_PREFIX) \
             or fn.__name__ == CHECK_PREFIX:
         raise ValueError(f"@check decorates a function named {CHECK_PREFIX}<name>, "
@@ -85,12 +88,12 @@ def check(fn: Callable | None = None, *, uses: tuple[str, ...] = ()) -> Callable
         print(SUCCESS.format(name=name))
 
     run.check_name = name
-    run.uses = tuple(uses)
+    run.uses = dict(uses)
     _register(name, run)
     return run
 
 
-def _failing_dependency(uses: tuple[str, ...], args: tuple) -> str | None:
+def _failing_dependency(uses: dict[str, str], args: tuple) -> str | None:
     """The message for the first used learner function that fails its own check, or None.
 
     The learner's functions are looked up in the namespace of the function under test
@@ -100,9 +103,9 @@ def _failing_dependency(uses: tuple[str, ...], args: tuple) -> str | None:
     namespace = getattr(args[0], "__globals__", None) if args else None
     if not uses or not isinstance(namespace, dict):
         return None
-    for dependency in uses:
+    for dependency, check_name in uses.items():
         learner_fn = namespace.get(dependency)
-        dependency_check = _REGISTRY.get(dependency)
+        dependency_check = _REGISTRY.get(check_name)
         if not callable(learner_fn) or dependency_check is None:
             continue
         try:
