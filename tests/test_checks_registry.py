@@ -60,8 +60,11 @@ def test_no_check_name_is_written_twice_in_the_source():
         tree = ast.parse(path.read_text(encoding="utf-8"))
         for node in ast.walk(tree):
             if isinstance(node, ast.FunctionDef) and node.name.startswith("check_"):
+                # @check, or @check(uses=...) with keyword arguments only (no name string)
                 decorators = [d for d in node.decorator_list
-                              if isinstance(d, ast.Name) and d.id == "check"]
+                              if (isinstance(d, ast.Name) and d.id == "check")
+                              or (isinstance(d, ast.Call) and isinstance(d.func, ast.Name)
+                                  and d.func.id == "check" and not d.args)]
                 assert decorators, f"{path.name}: {node.name} is not decorated with @check"
     init = (CHECKS_DIR / "__init__.py").read_text(encoding="utf-8")
     for name in checks.registered():
@@ -82,6 +85,36 @@ def test_success_line_and_failure_prefix_use_the_registered_name(capsys):
         assert checks.registered()["registry_test_passes"] is check_registry_test_passes
     finally:
         harness._REGISTRY.pop("registry_test_passes", None)
+
+
+def test_a_failing_used_function_is_named_instead_of_the_function_under_test():
+    # the learner's downstream function is right; the upstream one it calls is wrong
+    namespace = {}
+    exec("def upstream(x):\n    return x + 1\n"
+         "def downstream(x):\n    return upstream(x)\n", namespace)
+
+    @harness.check
+    def check_registry_upstream(fn):
+        if fn(1) != 1:
+            raise checks.CheckFailed("upstream(1) should be 1")
+
+    @harness.check(uses={"upstream": "registry_upstream"})
+    def check_registry_downstream(fn):
+        if fn(1) != 1:
+            raise checks.CheckFailed("downstream(1) should be 1")
+
+    try:
+        with pytest.raises(checks.CheckFailed, match=r"^registry_downstream: your upstream fails its own "
+                                                     r"check.*fix upstream first \(registry_upstream: upstream"):
+            check_registry_downstream(namespace["downstream"])
+        exec("def upstream(x):\n    return x\n", namespace)          # fixed upstream: no redirection
+        check_registry_downstream(namespace["downstream"])
+        exec("def downstream(x):\n    return upstream(x) + 1\n", namespace)
+        with pytest.raises(checks.CheckFailed, match=r"^registry_downstream: downstream\(1\) should be 1$"):
+            check_registry_downstream(namespace["downstream"])
+    finally:
+        harness._REGISTRY.pop("registry_upstream", None)
+        harness._REGISTRY.pop("registry_downstream", None)
 
 
 def test_a_duplicate_registration_is_rejected():
