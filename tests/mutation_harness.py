@@ -4,9 +4,10 @@ A solution notebook is run once per test session in this process (grader cells s
 matplotlib on Agg), which gives the namespace a learner's notebook would have. A *mutant*
 is a small text edit of one cell of that notebook (the reference code with one plausible
 learner mistake); an *equivalent* is an edit that stays correct (another way to write the
-same thing). To try one, the namespace is copied, the edited cell and every later cell that
-defines a function are run again in the copy (so a function that calls the mutated one sees
-the mutant), and the grader cell's check is called on the object the grader cell passes.
+same thing). To try one, the namespace is copied, the edited cell is run again in the copy and
+so are the function and class definitions of every later cell (so a function that calls the
+mutated one sees the mutant; the later cells' demo code is not run), and the grader cell's
+check is called on the object the grader cell passes.
 
 The catalogues are ``tests/mutants/chNN.py``; each holds ``MUTANTS``, ``EQUIVALENTS`` and
 ``EQUIVALENT_MUTANTS`` (edits that cannot change any result, each with the reason).
@@ -119,9 +120,14 @@ class Solution:
             raise LookupError(f"{self.path.name}:{cell.id}: {edit.old!r} occurs {count} times, expected once")
         return cell.source.replace(edit.old, edit.new)
 
-    @staticmethod
-    def _defines_a_function(source: str) -> bool:
-        return any(isinstance(node, (ast.FunctionDef, ast.ClassDef)) for node in ast.parse(source).body)
+    def _redefine(self, cell_id: str, source: str, namespace: dict) -> None:
+        """Run only the function and class definitions of a later cell (not its demo code,
+        which may fail on a mutant before the check is ever called)."""
+        definitions = [node for node in ast.parse(source).body
+                       if isinstance(node, (ast.FunctionDef, ast.ClassDef))]
+        if definitions:
+            module = ast.Module(body=definitions, type_ignores=[])
+            exec(compile(module, f"<{self.path.name}:{cell_id}>", "exec"), namespace)
 
     def grade(self, edit) -> Outcome:
         """Run the check of ``edit.check`` on the solution with ``edit`` applied."""
@@ -132,8 +138,7 @@ class Solution:
         with contextlib.redirect_stdout(io.StringIO()):
             self._run(cell.id, source, namespace)
             for later in self.code[start + 1:]:
-                if self._defines_a_function(later.source):
-                    self._run(later.id, later.source, namespace)
+                self._redefine(later.id, later.source, namespace)
         call = self.grader_call[edit.check]
         argument = call[call.index("(") + 1:call.rindex(")")]
         learner_object = eval(argument, namespace)

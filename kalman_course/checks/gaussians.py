@@ -1,87 +1,295 @@
-"""Checks for chapter 02: conditioning a joint Gaussian and pushing one through y = Gx + n."""
+"""Checks for chapter 02: conditioning a joint Gaussian and pushing one through y = Gx + n.
+
+The cases are chosen so that the mistakes learners make give different numbers: the first
+case of every check is square (n = m) with a non-symmetric Σ_xy or G, so a transposed block
+gives a wrong value instead of a shape error; the others have n ≠ m (both n > m and n < m),
+where a transpose changes the shape; covariances are full (non-diagonal) and anisotropic
+(scales from 0.1 to 30), so that a variance and a standard deviation, a matrix and its
+diagonal, or R and R R are different numbers. Reference and wrong values are computed once
+per process (``functools.cache``).
+
+Tolerance: the default ``rtol=1e-7, atol=1e-9`` of :func:`expect_close`. The condition
+numbers of the Σ_yy here stay below 300, so correct variants (an explicit inverse, a solve,
+a Cholesky factor, the gain form, the precision form through the inverse of the whole joint
+covariance) agree with the reference to ~1e-11 relative; every listed mistake differs by more
+than 1e-2 relative on some case.
+"""
 
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 
 from kalman_course.core import gaussians
-from kalman_course.checks.harness import CheckFailed, call, check, expect_close, expect_symmetric
+from kalman_course.checks.harness import (CheckFailed, as_array, call, check, expect_close,
+                                          expect_symmetric)
 
 
-def random_joint(n: int, m: int, seed: int):
-    """A random joint Gaussian of x (n) and y (m): (mu_x, mu_y, Sigma_xx, Sigma_xy, Sigma_yy)."""
+def random_joint(n: int, m: int, seed: int, scales=None):
+    """A random joint Gaussian of x (n) and y (m): (mu_x, mu_y, Sigma_xx, Sigma_xy, Sigma_yy).
+
+    ``scales`` (length n + m) multiplies each component's standard deviation, which makes
+    the covariance anisotropic; by default every component has a scale of 1.
+    """
     rng = np.random.default_rng(seed)
     A = rng.normal(size=(n + m, n + m))
     Sigma = A @ A.T + 0.5 * np.eye(n + m)
     mu = rng.normal(size=n + m)
+    if scales is not None:
+        D = np.diag(np.asarray(scales, dtype=float))
+        Sigma = D @ Sigma @ D
+        mu = D @ mu
     return mu[:n], mu[n:], Sigma[:n, :n], Sigma[:n, n:], Sigma[n:, n:]
 
 
+def _sqrtm(S):
+    """Symmetric square root of an SPD matrix (what a learner's scipy.linalg.sqrtm gives)."""
+    w, V = np.linalg.eigh(S)
+    return (V * np.sqrt(w)) @ V.T
+
+
+def _shape_hint(exc: CheckFailed, sizes: str, hint: str) -> CheckFailed:
+    """Append ``hint`` to a learner's exception when it is a shape mismatch (n ≠ m case)."""
+    text = str(exc)
+    if any(word in text for word in ("mismatch", "shape", "broadcast", "aligned", "dimension")):
+        return CheckFailed(f"{text} ({sizes}). Hint: {hint}")
+    return exc
+
+
+def _tuple(result, size: int, names: str, fn_name: str) -> tuple:
+    """A learner's multiple return as a tuple; a list of the same length is as good."""
+    if isinstance(result, (tuple, list)) and len(result) == size:
+        return tuple(result)
+    raise CheckFailed(f"{fn_name} must return {size} values {names} (a tuple or a list), "
+                      f"got {type(result).__name__}"
+                      + (f" of length {len(result)}" if isinstance(result, (tuple, list)) else ""))
+
+
+# ---------------------------------------------------------------------------------------
+# the conditional
+# ---------------------------------------------------------------------------------------
+
+#: (n, m, seed, scales): square first, then n > m, and an anisotropic n > m case.
+_CONDITIONAL_SHAPES = ((2, 2, 6, (1.0, 3.0, 0.5, 2.0)),
+                       (2, 1, 3, None),
+                       (3, 2, 4, (0.1, 1.0, 30.0, 2.0, 0.3)),
+                       (4, 3, 5, None))
+
+_CONDITIONAL_SHAPE_HINT = ("with n ≠ m the shapes do not fit, so a block is transposed "
+                           "somewhere in the function (mean or covariance): Σ_xy is (n, m), "
+                           "Σ_yx = Σ_xyᵀ is (m, n); Σ_yy⁻¹ Σ_yx is solve(Σ_yy, Σ_xy.T), and "
+                           "the innovation y − μ_y has m entries")
+
+
+@functools.cache
 def _conditional_cases():
-    for n, m, seed in ((2, 1, 3), (3, 2, 4), (4, 3, 5)):
-        mu_x, mu_y, Sxx, Sxy, Syy = random_joint(n, m, seed)
-        y = mu_y + np.random.default_rng(seed + 100).normal(size=m)
-        yield (mu_x, mu_y, Sxx, Sxy, Syy, y), gaussians.conditional(mu_x, mu_y, Sxx, Sxy, Syy, y)
+    """Each case: (args, mean, cov, mean mistakes, cov mistakes)."""
+    out = []
+    for n, m, seed, scales in _CONDITIONAL_SHAPES:
+        mu_x, mu_y, Sxx, Sxy, Syy = random_joint(n, m, seed, scales)
+        y = mu_y + np.sqrt(np.diag(Syy)) * np.random.default_rng(seed + 100).normal(size=m)
+        mean, cov = gaussians.conditional(mu_x, mu_y, Sxx, Sxy, Syy, y)
+        innovation = y - mu_y
+        K = np.linalg.solve(Syy, Sxy.T).T                        # Σ_xy Σ_yy⁻¹
+        K_diag = Sxy / np.diag(Syy)                              # only the variances of y
+        mean_mistakes = [
+            (mu_x + Sxy @ innovation, "the gain is Σ_xy Σ_yy⁻¹: the innovation y − μ_y must be "
+                                      "weighted by the inverse of Σ_yy"),
+            (mu_x + Sxy @ Syy @ innovation, "Σ_yy multiplies the innovation where its inverse "
+                                            "belongs: Σ_xy Σ_yy⁻¹ (y − μ_y), a solve with Σ_yy"),
+            (mu_x - K @ innovation, "sign: the mean moves towards the observation, "
+                                    "μ_x + Σ_xy Σ_yy⁻¹ (y − μ_y)"),
+            (mu_x, "the mean did not move: add Σ_xy Σ_yy⁻¹ (y − μ_y)"),
+            (mu_x + K @ y, "the mean of y is missing from the innovation: subtract μ_y from y"),
+            (mu_x + K_diag @ innovation, "only the diagonal of Σ_yy (the variances) was used: "
+                                         "y's components are correlated, invert the whole "
+                                         "matrix (np.linalg.solve(Sigma_yy, ...))"),
+        ]
+        cov_mistakes = [
+            (Sxx + K @ Sxy.T, "sign: observing y removes uncertainty, Σ_xx − Σ_xy Σ_yy⁻¹ Σ_yx"),
+            (Sxx, "the covariance did not shrink: subtract Σ_xy Σ_yy⁻¹ Σ_yx (the Schur complement)"),
+            (Sxx - Sxy @ Sxy.T, "Σ_yy⁻¹ is missing between Σ_xy and Σ_yx"),
+            (Sxx - Sxy @ Syy @ Sxy.T, "Σ_yy stands where its inverse belongs: Σ_xy Σ_yy⁻¹ Σ_yx"),
+            (Sxx - K_diag @ Sxy.T, "only the diagonal of Σ_yy (the variances) was used: y's "
+                                   "components are correlated, invert the whole matrix"),
+        ]
+        if n == m:
+            mean_mistakes += [
+                (mu_x + Sxy.T @ np.linalg.solve(Syy, innovation),
+                 "Σ_xy is transposed: the gain is Σ_xy Σ_yy⁻¹ with Σ_xy of shape (n, m)"),
+                (mu_x + K @ (y - mu_x), "the innovation subtracts the mean of y: y − μ_y, not μ_x"),
+                (mu_y + K @ innovation, "the conditional mean of x starts from μ_x, not μ_y"),
+                (mu_x + np.linalg.solve(Syy, Sxy) @ innovation,
+                 "Σ_yy⁻¹ Σ_xy is the gain transposed (and in the wrong order): the gain is "
+                 "Σ_xy Σ_yy⁻¹ = solve(Σ_yy, Σ_xy.T).T"),
+            ]
+            cov_mistakes += [
+                (Sxx - Sxy @ np.linalg.solve(Syy, Sxy),
+                 "Σ_yx = Σ_xyᵀ: the last factor is transposed, Σ_xy Σ_yy⁻¹ Σ_xyᵀ"),
+                (Sxx - Sxy.T @ np.linalg.solve(Syy, Sxy),
+                 "Σ_xy and Σ_yx are swapped (transposed): Σ_xx − Σ_xy Σ_yy⁻¹ Σ_xyᵀ"),
+                (Syy - Sxy.T @ np.linalg.solve(Sxx, Sxy),
+                 "that is the covariance of y given x; the covariance of x given y is "
+                 "Σ_xx − Σ_xy Σ_yy⁻¹ Σ_yx"),
+                (Sxx - np.linalg.solve(Syy, Sxy.T) @ Sxy,
+                 "the factors are in the wrong order (matrix products do not commute): "
+                 "Σ_xy Σ_yy⁻¹ Σ_yx"),
+            ]
+        # a learner who symmetrises the result (as the exercise's return line does) turns a
+        # non-symmetric wrong covariance into its symmetric part: name that one too
+        cov_mistakes += [(0.5 * (w + w.T), why) for w, why in cov_mistakes
+                         if not np.allclose(w, w.T, rtol=1e-9, atol=1e-12)]
+        out.append(((mu_x, mu_y, Sxx, Sxy, Syy, y), mean, cov, mean_mistakes, cov_mistakes))
+    return out
 
 
 def _call_conditional(fn, args):
-    result = call(fn, *args)
-    if not isinstance(result, tuple) or len(result) != 2:
-        raise CheckFailed("gaussian_conditional must return a tuple (mean, cov)")
-    return result
+    """The learner's (mean, cov), with a hint on a shape error or a swapped order."""
+    n, m = len(args[0]), len(args[1])
+    try:
+        result = call(fn, *args)
+    except CheckFailed as exc:
+        raise _shape_hint(exc, f"n = {n}, m = {m}", _CONDITIONAL_SHAPE_HINT) from None
+    mean, cov = _tuple(result, 2, "(mean, cov)", "gaussian_conditional")
+    if np.ndim(mean) == 2 and np.ndim(cov) == 1:
+        raise CheckFailed("gaussian_conditional returned (cov, mean): the order is (mean, cov)")
+    return mean, cov
 
 
 @check
 def check_conditional_mean(gaussian_conditional):
     """The mean of the learner's ``gaussian_conditional(mu_x, mu_y, Sxx, Sxy, Syy, y)``."""
-    for args, (mean, _) in _conditional_cases():
-        mu_x, mu_y, Sxx, Sxy, Syy, y = args
+    for args, mean, _, mistakes, _ in _conditional_cases():
         got, _ = _call_conditional(gaussian_conditional, args)
-        expect_close(got, mean, "conditional mean", mistakes=[
-            (mu_x + Sxy @ (y - mu_y), "the gain is Σ_xy Σ_yy⁻¹: the innovation y − μ_y must be "
-                                      "weighted by the inverse of Σ_yy"),
-            (mu_x - Sxy @ np.linalg.solve(Syy, y - mu_y), "sign: the mean moves towards the observation, "
-                                                          "μ_x + Σ_xy Σ_yy⁻¹ (y − μ_y)"),
-            (mu_x, "the mean did not move: add Σ_xy Σ_yy⁻¹ (y − μ_y)"),
-        ], hint="μ_x|y = μ_x + Σ_xy Σ_yy⁻¹ (y − μ_y)")
+        expect_close(got, mean, f"conditional mean (n = {len(mean)}, m = {len(args[1])})",
+                     mistakes=mistakes, hint="μ_x|y = μ_x + Σ_xy Σ_yy⁻¹ (y − μ_y)")
 
 
 @check
 def check_conditional_covariance(gaussian_conditional):
     """The covariance of the learner's ``gaussian_conditional``: the Schur complement of Σ_yy."""
-    for args, (_, cov) in _conditional_cases():
-        _, _, Sxx, Sxy, Syy, _ = args
+    for args, _, cov, _, mistakes in _conditional_cases():
+        n, m = cov.shape[0], len(args[1])
         _, got = _call_conditional(gaussian_conditional, args)
-        expect_close(got, cov, "conditional covariance", mistakes=[
-            (Sxx + Sxy @ np.linalg.solve(Syy, Sxy.T), "sign: observing y removes uncertainty, "
-                                                     "Σ_xx − Σ_xy Σ_yy⁻¹ Σ_yx"),
-            (Sxx, "the covariance did not shrink: subtract Σ_xy Σ_yy⁻¹ Σ_yx (the Schur complement)"),
-            (Sxx - Sxy @ Sxy.T, "Σ_yy⁻¹ is missing between Σ_xy and Σ_yx"),
-        ], hint="Σ_x|y = Σ_xx − Σ_xy Σ_yy⁻¹ Σ_yx")
-        expect_symmetric(got, "conditional covariance")
+        what = f"conditional covariance (n = {n}, m = {m})"
+        arr = as_array(got, what)
+        if n != m and arr.shape == (m, m):
+            raise CheckFailed(f"{what} has shape {arr.shape}, the size of y: the covariance of x "
+                              f"given y is (n, n) = ({n}, {n}), Σ_xx − Σ_xy Σ_yy⁻¹ Σ_yx (not the "
+                              "covariance of y given x)")
+        expect_close(arr, cov, what, mistakes=mistakes, hint="Σ_x|y = Σ_xx − Σ_xy Σ_yy⁻¹ Σ_yx")
+        expect_symmetric(arr, what)
+
+
+# ---------------------------------------------------------------------------------------
+# the linear map
+# ---------------------------------------------------------------------------------------
+
+_LINEAR_SHAPE_HINT = ("with n ≠ m the shapes do not fit, so a matrix is transposed somewhere: G "
+                      "is (m, n); μ_y = G μ_x, Σ_yy = G Σ_xx Gᵀ + R is (m, m), Σ_xy = Σ_xx Gᵀ is "
+                      "(n, m)")
+
+
+@functools.cache
+def _linear_cases():
+    """Each case: (args, (mu_y, Syy, Sxy), mistakes for mu_y, Syy, Sxy). The first is square
+    with a non-symmetric G and a diagonal, anisotropic R (noise σ = 0.2 and 1.5, so √R, R
+    and R R all differ); then n > m with full R, n > m with m = 1, and n < m."""
+    rng = np.random.default_rng(21)
+    out = []
+    for n, m in ((2, 2), (3, 2), (4, 1), (2, 3)):
+        A = rng.normal(size=(n, n))
+        Sxx = np.diag(rng.uniform(0.3, 3.0, n)) @ (A @ A.T + 0.3 * np.eye(n)) @ \
+            np.diag(rng.uniform(0.3, 3.0, n))
+        Sxx = 0.5 * (Sxx + Sxx.T)
+        mu_x = rng.normal(size=n)
+        G = rng.normal(size=(m, n))
+        if (n, m) == (2, 2):
+            R = np.diag([0.2 ** 2, 1.5 ** 2])
+        else:
+            B = rng.normal(size=(m, m)) * rng.uniform(0.2, 2.0, m)[:, None]
+            R = B @ B.T + 0.2 * np.eye(m)
+        mu_y, Syy, Sxy = gaussians.linear_map(mu_x, Sxx, G, R)
+        GSG = G @ Sxx @ G.T
+        syy_mistakes = [
+            (GSG, "R is missing: the observation noise adds its covariance, Σ_yy = G Σ_xx Gᵀ + R"),
+            (GSG + R @ R, "R is already a covariance (variances): add R, not R R (do not square "
+                          "it)"),
+            (GSG + _sqrtm(R), "R holds variances: add R, not its square root (a standard "
+                              "deviation)"),
+            (GSG + np.linalg.inv(R), "add the noise covariance R itself, not R⁻¹"),
+            (GSG - R, "sign: independent noise adds its covariance, + R"),
+        ]
+        if not np.allclose(R, np.diag(np.diag(R))):
+            syy_mistakes += [
+                (GSG + np.diag(np.diag(R)), "only the diagonal of R was added: the noise "
+                                            "components are correlated, add the whole R"),
+                (GSG + R ** 2, "R is already a covariance (variances): add R, do not square it"),
+            ]
+        if not np.allclose(R, np.eye(m)):
+            syy_mistakes.append((GSG + np.eye(m), "the noise covariance is R, not the identity"))
+        with np.errstate(invalid="ignore"):
+            root = np.sqrt(R)                                    # element-wise: NaN off-diagonal < 0
+        if np.all(np.isfinite(root)):
+            syy_mistakes.append((GSG + root, "R holds variances: add R, not its element-wise "
+                                             "square root (a standard deviation)"))
+        sxy_mistakes = [
+            (Sxx, "Σ_xy = Σ_xx Gᵀ: the map G must appear"),
+            (Sxx @ G.T @ np.linalg.inv(Syy), "that is the gain Σ_xy Σ_yy⁻¹ of the next chapter; "
+                                             "the cross-covariance is Σ_xy = Σ_xx Gᵀ"),
+        ]
+        mu_mistakes = []
+        if n == m:
+            syy_mistakes += [
+                (G.T @ Sxx @ G + R, "G and Gᵀ are swapped (transposed): Σ_yy = G Σ_xx Gᵀ + R"),
+                (G @ Sxx @ G + R, "the transpose of the last G is missing: G Σ_xx Gᵀ + R"),
+                (GSG + G @ R @ G.T, "the noise is added after the map: + R, not G R Gᵀ"),
+                (Sxx + R, "Σ_yy = G Σ_xx Gᵀ + R: the map G must appear"),
+            ]
+            sxy_mistakes += [
+                (G @ Sxx, "that is Σ_yx = G Σ_xx (its transpose); Σ_xy = E[(x − μ_x)(y − μ_y)ᵀ] "
+                          "= Σ_xx Gᵀ"),
+                (G.T @ Sxx, "Σ_xy = Σ_xx Gᵀ: Σ_xx comes first (Gᵀ Σ_xx is another matrix)"),
+                (Sxx @ G.T + R, "the noise is independent of x: it adds nothing to Σ_xy = Σ_xx Gᵀ"),
+            ]
+            mu_mistakes += [
+                (mu_x, "the mean goes through the map: μ_y = G μ_x"),
+                (G.T @ mu_x, "G is transposed: μ_y = G μ_x"),
+            ]
+        out.append(((mu_x, Sxx, G, R), (mu_y, Syy, Sxy), (mu_mistakes, syy_mistakes, sxy_mistakes)))
+    return out
+
+
+def _close(a, b) -> bool:
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    return a.shape == b.shape and np.allclose(a, b, rtol=1e-7, atol=1e-9)
 
 
 @check
 def check_linear_map_moments(linear_map_moments):
     """The learner's ``linear_map_moments(mu_x, Sigma_xx, G, R)`` returns (mu_y, Sigma_yy, Sigma_xy)."""
-    rng = np.random.default_rng(21)
-    for n, m in ((2, 2), (3, 2), (4, 1)):
-        A = rng.normal(size=(n, n))
-        Sxx = A @ A.T + 0.3 * np.eye(n)
-        mu_x = rng.normal(size=n)
-        G = rng.normal(size=(m, n))
-        B = rng.normal(size=(m, m))
-        R = B @ B.T + 0.2 * np.eye(m)
-        result = call(linear_map_moments, mu_x, Sxx, G, R)
-        if not isinstance(result, tuple) or len(result) != 3:
-            raise CheckFailed("linear_map_moments must return a tuple (mu_y, Sigma_yy, Sigma_xy)")
-        mu_y, Syy, Sxy = gaussians.linear_map(mu_x, Sxx, G, R)
-        expect_close(result[0], mu_y, "mu_y", hint="the noise has zero mean, so μ_y = G μ_x")
-        expect_close(result[1], Syy, "Sigma_yy", mistakes=[
-            (G @ Sxx @ G.T, "the observation noise adds its covariance: Σ_yy = G Σ_xx Gᵀ + R"),
-            (G @ Sxx @ G.T + R @ R, "R is already a covariance: add R, not R R"),
-        ], hint="Σ_yy = G Σ_xx Gᵀ + R")
-        expect_close(result[2], Sxy, "Sigma_xy", mistakes=[
-            (G @ Sxx, "that is Σ_yx (shape (m, n)); Σ_xy = E[(x − μ_x)(y − μ_y)ᵀ] = Σ_xx Gᵀ"),
-            (Sxx, "Σ_xy = Σ_xx Gᵀ: the map G must appear"),
-        ], hint="Σ_xy = Σ_xx Gᵀ, shape (n, m)")
+    for args, (mu_y, Syy, Sxy), (mu_mistakes, syy_mistakes, sxy_mistakes) in _linear_cases():
+        n, m = Sxy.shape
+        sizes = f"n = {n}, m = {m}"
+        try:
+            result = call(linear_map_moments, *args)
+        except CheckFailed as exc:
+            raise _shape_hint(exc, sizes, _LINEAR_SHAPE_HINT) from None
+        got_mu, got_syy, got_sxy = _tuple(result, 3, "(mu_y, Sigma_yy, Sigma_xy)", "linear_map_moments")
+        try:
+            if _close(got_syy, Sxy) and _close(got_sxy, Syy):
+                raise CheckFailed("Sigma_yy and Sigma_xy are swapped: the order is "
+                                  "(mu_y, Sigma_yy, Sigma_xy)")
+        except (TypeError, ValueError):                  # non-numeric: compared below
+            pass
+        expect_close(got_mu, mu_y, f"mu_y ({sizes})", mistakes=mu_mistakes,
+                     hint="the noise has zero mean, so μ_y = G μ_x")
+        expect_close(got_syy, Syy, f"Sigma_yy ({sizes})", mistakes=syy_mistakes,
+                     hint="Σ_yy = G Σ_xx Gᵀ + R")
+        arr = as_array(got_sxy, f"Sigma_xy ({sizes})")
+        if n != m and arr.shape == (m, n):
+            raise CheckFailed(f"Sigma_xy ({sizes}) has shape {arr.shape}: that is Σ_yx = G Σ_xx, "
+                              f"its transpose; Σ_xy = Σ_xx Gᵀ has shape (n, m) = ({n}, {m})")
+        expect_close(arr, Sxy, f"Sigma_xy ({sizes})", mistakes=sxy_mistakes,
+                     hint="Σ_xy = Σ_xx Gᵀ, shape (n, m)")

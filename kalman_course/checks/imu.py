@@ -1,9 +1,17 @@
 """Checks for chapter 07: the three midpoint steps of IMU mechanisation, and a whole run.
 
-Each step is compared with a closed form on synthetic motion (constant rate, constant
-specific force) and with :func:`kalman_course.core.imu.midpoint_step` on KITTI samples; the
-whole run with :func:`kalman_course.core.imu.dead_reckon` on a KITTI slice and with the exact
-truth of a synthetic trajectory.
+Each step is compared on several cases with the closed form of the midpoint rule: synthetic
+motion (a constant rate, a resting IMU, constant acceleration), synthetic cases whose rates,
+readings, biases and attitudes all differ (so that a dropped bias, a start-point rate, a
+transposed or left-multiplied rotation or a T² change the value), rates from exactly zero
+down to 1e-12 rad/s, and KITTI samples with made-up biases. The whole run is compared with
+:func:`kalman_course.core.imu.dead_reckon` on synthetic motion (constant dt, whose truth the
+midpoint rule reproduces exactly) and on a KITTI slice (irregular dt, not at the start of
+the data).
+
+When a result is wrong, the check looks for the plausible mistake that reproduces the
+learner's value on *every* case (a wrong formula is consistent; a coincidence on one case is
+not) and names it; otherwise it reports the first case that differs, with the formula.
 """
 
 from __future__ import annotations
@@ -13,12 +21,29 @@ import functools
 import numpy as np
 
 from kalman_course.core import so3
-from kalman_course.checks.harness import CheckFailed, call, check, expect_close, expect_shape
+from kalman_course.checks.harness import CheckFailed, as_array, call, check, expect_shape
 from kalman_course.data import imu_trajectory, load_kitti
 from kalman_course.core.imu import NavState, dead_reckon
 
 #: The KITTI slice the whole-run check integrates: excerpt, first sample, number of samples.
 RUN_SLICE = ("turns", 1000, 500)
+
+#: Gravity of the synthetic cases (navigation frame z up, as KITTI), m/s².
+GRAVITY = np.array([0.0, 0.0, -9.8092])
+
+# Tolerances, absolute on entries (all of order 1 for rotations, 10 for velocities and
+# 100 for positions), with the reason for each:
+#: R_next: Rodrigues, a unit quaternion, scipy's expm or Rotation all agree with so3.Exp to
+#: ~1e-15; the smallest mistake kept apart is a first-order I + [φ]× re-orthonormalised,
+#: which errs by θ³/3 ≈ 3e-6 on the "tumbling" case (θ = 0.023 rad); every other listed
+#: mistake changes R_next by ≥ 3e-3 on some case.
+ATTITUDE_ATOL = 1e-10
+#: v_next: any order of the sums and products rounds to ~1e-14 m/s; every listed mistake
+#: changes v_next by ≥ 2e-3 m/s on some case.
+VELOCITY_ATOL = 1e-10
+#: p_next: round-off ~1e-13 m on KITTI's ~100 m coordinates; every listed mistake changes
+#: p_next by ≥ 0.2 m on some case.
+POSITION_ATOL = 1e-9
 
 
 def reference_attitude_step(R, w0, w1, b_w, dt):
@@ -36,6 +61,10 @@ def reference_position_step(p, v0, v1, dt):
     return p + 0.5 * (v0 + v1) * dt
 
 
+# ----------------------------------------------------------------------------------------
+# Cases (built once: the checks' own run time stays that of the learner's calls)
+# ----------------------------------------------------------------------------------------
+
 @functools.lru_cache(maxsize=None)
 def _kitti_cases(count: int = 6, seed: int = 0):
     """Consecutive KITTI IMU sample pairs with the true attitude there and made-up biases."""
@@ -44,7 +73,7 @@ def _kitti_cases(count: int = 6, seed: int = 0):
     cases = []
     for k in rng.choice(np.arange(10, len(ex.imu) - 10), size=count, replace=False):
         nav = ex.truth.state_at(float(np.clip(ex.imu.t[k], ex.truth.t[0], ex.truth.t[-1])))
-        cases.append(dict(R=nav.rotation, v=nav.velocity, p=nav.position,
+        cases.append(dict(name=f"KITTI sample {k}", R=nav.rotation, v=nav.velocity, p=nav.position,
                           f0=ex.imu.specific_force[k].copy(), f1=ex.imu.specific_force[k + 1].copy(),
                           w0=ex.imu.angular_rate[k].copy(), w1=ex.imu.angular_rate[k + 1].copy(),
                           b_a=rng.normal(size=3) * 0.05, b_w=rng.normal(size=3) * 0.01,
@@ -52,107 +81,594 @@ def _kitti_cases(count: int = 6, seed: int = 0):
     return tuple(cases)
 
 
-def _rotation_result(value, what):
-    R = expect_shape(value, (3, 3), what)
-    if not so3.is_rotation(R, tol=1e-9):
-        raise CheckFailed(f"{what} is not a rotation matrix (RᵀR ≠ I). Hint: compose with Exp(φ), "
-                          "not with the first-order I + [φ]×")
-    return R
+def _synthetic_case(name, seed, rate, spread, bias, dt):
+    """A case with a random attitude, two different rates and readings, and biases."""
+    rng = np.random.default_rng(seed)
+    w0 = rate * rng.normal(size=3)
+    return dict(name=name, R=so3.exp(rng.normal(size=3)), v=rng.normal(size=3) * 5.0,
+                p=rng.normal(size=3) * 50.0, w0=w0, w1=w0 + spread * rng.normal(size=3),
+                b_w=bias * rng.normal(size=3), f0=rng.normal(size=3) * 3.0 - GRAVITY,
+                f1=rng.normal(size=3) * 3.0 - GRAVITY, b_a=rng.normal(size=3) * 0.3,
+                dt=dt, g=GRAVITY.copy())
+
+
+@functools.lru_cache(maxsize=None)
+def _attitude_cases():
+    """(name, R, w0, w1, b_w, dt, R_next) for the attitude step."""
+    R0 = so3.exp(np.array([0.2, -0.4, 1.0]))
+    w = np.array([0.3, -0.1, 0.7])
+    still = np.array([0.01, -0.02, 0.005])
+    raw = [
+        # a constant rate ω about a fixed axis for T seconds is exactly Exp(ω T)
+        ("constant rate", R0, w, w, np.zeros(3), 0.5),
+        # every term differs: a start-point rate, a dropped bias or a wrong order all show
+        _pick(_synthetic_case("tumbling", 71, 0.8, 0.5, 0.1, 0.05), "R", "w0", "w1", "b_w", "dt"),
+        _pick(_synthetic_case("slow turn", 72, 0.2, 0.05, 0.02, 0.02), "R", "w0", "w1", "b_w", "dt"),
+        # the bias cancels the rate exactly: ω̄ = 0, where Rodrigues' formula divides 0 by 0
+        ("bias-cancelled rate (ω̄ = 0)", R0, still, still, still, 0.01),
+        ("zero rate", so3.exp(np.array([-1.0, 0.3, 2.5])), np.zeros(3), np.zeros(3), np.zeros(3), 0.01),
+        # tiny rates, where a series or a small-angle switch must still be exact
+        ("rate 1e-12 rad/s", R0, 1e-12 * np.array([1.0, -2.0, 0.5]), 1e-12 * np.array([0.5, 1.0, -1.5]),
+         np.zeros(3), 0.01),
+        ("rate 1e-6 rad/s", R0, 1e-6 * np.array([-1.0, 2.0, 0.5]), 1e-6 * np.array([1.0, 1.0, 1.5]),
+         1e-7 * np.array([1.0, 0.0, -1.0]), 0.01),
+        ("rate 1e-3 rad/s", R0, 1e-3 * np.array([0.7, -0.2, 0.4]), 1e-3 * np.array([0.9, 0.2, -0.4]),
+         1e-4 * np.array([1.0, 2.0, 3.0]), 0.1),
+    ] + [_pick(c, "R", "w0", "w1", "b_w", "dt") for c in _kitti_cases()]
+    return tuple(dict(name=n, R=R, w0=w0, w1=w1, b_w=b, dt=dt, ref=reference_attitude_step(R, w0, w1, b, dt))
+                 for n, R, w0, w1, b, dt in raw)
+
+
+@functools.lru_cache(maxsize=None)
+def _velocity_cases():
+    """Cases for the velocity step, each with R1 = the reference attitude step and ``ref``."""
+    rest = dict(name="level IMU at rest", v=np.array([1.0, 2.0, 0.0]), R=np.eye(3), w0=np.zeros(3),
+                w1=np.zeros(3), b_w=np.zeros(3), f0=-GRAVITY, f1=-GRAVITY, b_a=np.zeros(3), dt=0.1,
+                g=GRAVITY.copy())
+    raw = [rest, _synthetic_case("tumbling", 81, 0.8, 0.5, 0.1, 0.05),
+           _synthetic_case("braking on a slope", 82, 0.3, 0.2, 0.05, 0.02)] + list(_kitti_cases())
+    # standard gravity in one case, so that a hard-coded g differs from the one handed in
+    raw[2] = dict(raw[2], g=np.array([0.0, 0.0, -9.80665]))
+    cases = []
+    for c in raw:
+        R1 = reference_attitude_step(c["R"], c["w0"], c["w1"], c["b_w"], c["dt"])
+        args = (c["v"], c["R"], R1, c["f0"], c["f1"], c["b_a"], c["g"], c["dt"])
+        cases.append(dict(name=c["name"], args=args, ref=reference_velocity_step(*args)))
+    return tuple(cases)
+
+
+@functools.lru_cache(maxsize=None)
+def _position_cases():
+    """Cases for the position step: constant acceleration, random velocities, KITTI."""
+    p, v0, a, T = np.array([1.0, -2.0, 0.5]), np.array([3.0, 1.0, 0.0]), np.array([0.5, -1.0, 0.2]), 0.2
+    raw = [("constant acceleration", p, v0, v0 + a * T, T)]
+    rng = np.random.default_rng(90)
+    for k, T in enumerate((0.05, 0.013)):
+        raw.append((f"random velocities {k}", rng.normal(size=3) * 30.0, rng.normal(size=3) * 8.0,
+                    rng.normal(size=3) * 8.0, T))
+    for c in _kitti_cases():
+        raw.append((c["name"], c["p"], c["v"], c["v"] + np.array([0.01, -0.02, 0.003]), c["dt"]))
+    return tuple(dict(name=n, args=(p, v0, v1, T), ref=reference_position_step(p, v0, v1, T))
+                 for n, p, v0, v1, T in raw)
+
+
+def _pick(case, *keys):
+    return (case["name"],) + tuple(case[k] for k in keys)
+
+
+# ----------------------------------------------------------------------------------------
+# Grading: compare on every case, then name the mistake that explains every case
+# ----------------------------------------------------------------------------------------
+
+def _same(value, ref, atol):
+    return value.shape == np.shape(ref) and bool(np.allclose(value, ref, rtol=0.0, atol=atol))
+
+
+def _explained_by(mistake, values, cases, atol) -> bool:
+    """True if ``mistake(case)`` reproduces the learner's value on every case."""
+    for value, case in zip(values, cases):
+        try:
+            wrong = np.asarray(mistake(case), dtype=float)
+        except Exception:  # a mistake formula may not apply to a case (e.g. a shape)
+            return False
+        if not _same(value, wrong, atol):
+            return False
+    return True
+
+
+def _grade(values, cases, what, atol, mistakes, hint, patterns=()):
+    """Fail unless every value matches its case's ``ref``; name the mistake if one fits all.
+
+    Parameters
+    ----------
+    values : list of numpy.ndarray
+        The learner's results, one per case (already of the right shape and finite).
+    cases : sequence of dict
+        Each with ``name`` and ``ref``.
+    what : str
+        The quantity, for the message.
+    atol : float
+        Absolute tolerance on every entry.
+    mistakes : sequence of (callable, str)
+        ``(case -> wrong value, hint)``; computed only when a value is wrong.
+    hint : str
+        The formula, given when no listed mistake explains the values.
+    patterns : sequence of (callable, str)
+        ``(predicate(value, case) -> bool, hint)`` for a mistake that no single wrong value
+        describes (an approximation): it is named if the predicate holds on every case.
+    """
+    failing = [k for k, (v, c) in enumerate(zip(values, cases)) if not _same(v, c["ref"], atol)]
+    if not failing:
+        return
+    for mistake, why in mistakes:
+        if _explained_by(mistake, values, cases, atol):
+            raise CheckFailed(f"{what} is wrong. Hint: {why}")
+    for pattern, why in patterns:
+        try:
+            fits = all(pattern(v, c) for v, c in zip(values, cases))
+        except Exception:  # a pattern may not apply to a malformed value
+            fits = False
+        if fits:
+            raise CheckFailed(f"{what} is wrong. Hint: {why}")
+    k = failing[0]
+    err = np.max(np.abs(values[k] - cases[k]["ref"]))
+    raise CheckFailed(f"{what} differs from the reference on the case '{cases[k]['name']}' "
+                      f"(max abs error {err:.3g}). Hint: {hint}")
+
+
+_BROADCAST = ("the vectors are of shape (3,) and the rotations (3, 3); a mean of two of them, "
+              "np.mean([a, b], axis=0), is over axis 0, which keeps shape (3,)")
+
+
+def _call_step(fn, *args, hint=""):
+    """``call(fn, *args)``; numpy's shape errors and ``hint`` (if given) name the likely cause."""
+    try:
+        return call(fn, *args)
+    except CheckFailed as exc:
+        if "broadcast" in str(exc) or "matmul" in str(exc):  # numpy's words for mismatched shapes
+            raise CheckFailed(f"{exc}. Hint: {_BROADCAST}") from None
+        if hint:
+            raise CheckFailed(f"{exc}. Hint: {hint}") from None
+        raise
+
+
+def _result(value, shape, what, nan_hint=""):
+    """The learner's value as an array of ``shape``; NaN/inf fail with ``nan_hint``."""
+    try:
+        return expect_shape(value, shape, what)
+    except CheckFailed as exc:
+        if nan_hint and "NaN" in str(exc):
+            raise CheckFailed(f"{exc}. Hint: {nan_hint}") from None
+        raise
+
+
+# ----------------------------------------------------------------------------------------
+# The attitude step
+# ----------------------------------------------------------------------------------------
+
+def _phi(c, rate=None, dt=None):
+    rate = 0.5 * (c["w0"] + c["w1"]) - c["b_w"] if rate is None else rate
+    return rate * (c["dt"] if dt is None else dt)
+
+
+def _first_order(value, c):
+    """A rotation that agrees with R Exp(φ) only to first order in φ (error ≤ |φ|², > 1e-13)."""
+    err = float(np.linalg.norm(so3.log(so3.orthonormalise(c["ref"].T @ value), check=False)))
+    theta = float(np.linalg.norm(_phi(c)))
+    return err <= max(theta * theta, 1e-13)
+
+
+_MIDPOINT_RATE = "½(ω₀ + ω₁) − b_ω"
+_ZERO_RATE = ("at ω̄ T = 0 Rodrigues' formula divides 0 by 0: below a small angle use its series "
+              "(Exp(φ) ≈ I + [φ]× + ½[φ]×²), or so3.Exp, which does")
+_ATTITUDE_MISTAKES = [
+    (lambda c: so3.exp(_phi(c)) @ c["R"],
+     "ω is measured in the body frame, so its rotation multiplies on the right: "
+     "R_next = R Exp(ω̄ T), not Exp(ω̄ T) R (that would rotate about navigation-frame axes)"),
+    (lambda c: c["R"].T @ so3.exp(_phi(c)),
+     "do not transpose R: R is R_nb (body → navigation) and R_next = R Exp(ω̄ T)"),
+    (lambda c: (c["R"] @ so3.exp(_phi(c))).T,
+     "R_next is R Exp(ω̄ T), not its transpose (R_nb maps body to navigation coordinates)"),
+    (lambda c: c["R"] @ so3.exp(_phi(c)).T,
+     "sign: the body turns by +ω̄ T, so R_next = R Exp(+ω̄ T); Exp(−ω̄ T) = Exp(ω̄ T)ᵀ turns it back"),
+    (lambda c: c["R"] @ so3.exp(_phi(c, 0.5 * (c["w0"] + c["w1"]))),
+     f"subtract the gyro bias: ω̄ = {_MIDPOINT_RATE} (the bias was left out)"),
+    (lambda c: c["R"] @ so3.exp(_phi(c, 0.5 * (c["w0"] + c["w1"]) + c["b_w"])),
+     f"the gyro bias is subtracted, not added: ω̄ = {_MIDPOINT_RATE}"),
+    (lambda c: c["R"] @ so3.exp(_phi(c, 0.5 * (c["w0"] + c["w1"] - c["b_w"]))),
+     f"the gyro bias is subtracted in full from each rate, not halved: ω̄ = {_MIDPOINT_RATE}"),
+    (lambda c: c["R"] @ so3.exp(_phi(c, c["w0"] - c["b_w"])),
+     f"midpoint rule: use the mean of the two rates, ω̄ = {_MIDPOINT_RATE}, not the rate at the "
+     "start of the step (that is Euler's rule)"),
+    (lambda c: c["R"] @ so3.exp(_phi(c, c["w1"] - c["b_w"])),
+     f"midpoint rule: use the mean of the two rates, ω̄ = {_MIDPOINT_RATE}, not the rate at the "
+     "end of the step"),
+    (lambda c: c["R"] @ so3.exp(_phi(c, c["w0"] + c["w1"] - c["b_w"])),
+     f"midpoint rule: the mean of the two rates is half their sum, ω̄ = {_MIDPOINT_RATE}"),
+    (lambda c: c["R"] @ so3.exp(_phi(c, dt=1.0)),
+     "the rotation vector is a rate times the step: φ = ω̄ T (rad/s × s); multiply by dt"),
+    (lambda c: c["R"] @ so3.exp(_phi(c, dt=c["dt"] ** 2)),
+     "the rotation vector is φ = ω̄ T, with T, not T²"),
+    (lambda c: c["R"] @ so3.exp(_phi(c, dt=0.5 * c["dt"])),
+     "the rotation over the step is φ = ω̄ T, not half of it"),
+    (lambda c: c["R"] @ so3.exp(np.deg2rad(_phi(c))),
+     "the gyro reads radians per second already: do not convert from degrees (φ = ω̄ T in radians)"),
+    (lambda c: c["R"] @ so3.exp(np.rad2deg(_phi(c))),
+     "the gyro reads radians per second already: do not convert to degrees (Exp takes radians)"),
+    (lambda c: c["R"] @ so3.exp(0.5 * (c["w0"] - c["b_w"]) * c["dt"]) @ so3.exp(0.5 * (c["w1"] - c["b_w"]) * c["dt"]),
+     f"the midpoint rule turns once, by the mean rate: R Exp(ω̄ T) with ω̄ = {_MIDPOINT_RATE}, not two "
+     "half-steps Exp(ω₀T/2) Exp(ω₁T/2) (rotations do not commute)"),
+    (lambda c: c["R"] @ so3.exp((np.mean([c["w0"], c["w1"]]) - c["b_w"]) * c["dt"]),
+     "the mean is over the two rates (axis 0 of [ω₀, ω₁]), not over all six numbers: "
+     "np.mean([w0, w1], axis=0)"),
+    (lambda c: c["R"],
+     "the attitude did not change: R_next = R Exp(ω̄ T)"),
+    (lambda c: so3.exp(_phi(c)),
+     "compose with the previous attitude: R_next = R Exp(ω̄ T), not Exp(ω̄ T) alone"),
+]
 
 
 @check
 def check_attitude_step(attitude_step):
     """``attitude_step(R, w0, w1, b_w, dt)`` returns the attitude at the next sample."""
-    # closed form: a constant rate ω about a fixed axis for T seconds is Exp(ω T)
-    R0 = so3.exp(np.array([0.2, -0.4, 1.0]))
-    w = np.array([0.3, -0.1, 0.7])
-    got = _rotation_result(call(attitude_step, R0, w, w, np.zeros(3), 0.5), "R_next (constant rate)")
-    expect_close(got, R0 @ so3.exp(w * 0.5), "R_next for a constant rate", mistakes=[
-        (so3.exp(w * 0.5) @ R0, "ω is measured in the body frame, so its rotation multiplies on the "
-                                "right: R Exp(ω T), not Exp(ω T) R")],
-        hint="R_next = R Exp(ω T) for a constant rate")
-    for c in _kitti_cases():
-        got = call(attitude_step, c["R"], c["w0"], c["w1"], c["b_w"], c["dt"])
-        got = _rotation_result(got, "R_next")
-        ref = reference_attitude_step(c["R"], c["w0"], c["w1"], c["b_w"], c["dt"])
-        phi = (0.5 * (c["w0"] + c["w1"]) - c["b_w"]) * c["dt"]
-        expect_close(got, ref, "R_next on KITTI samples", atol=1e-12, mistakes=[
-            (so3.exp(phi) @ c["R"], "ω is a body-frame rate: R_next = R Exp(φ), not Exp(φ) R"),
-            (c["R"] @ so3.exp(0.5 * (c["w0"] + c["w1"]) * c["dt"]), "subtract the gyro bias: ω̄ = ω − b_ω"),
-            (c["R"] @ so3.exp((c["w0"] - c["b_w"]) * c["dt"]),
-             "midpoint rule: use the mean of the two rates, ½(ω₀ + ω₁) − b_ω"),
-        ], hint="R_next = R Exp((½(ω₀ + ω₁) − b_ω) T)")
+    cases = _attitude_cases()
+    values = []
+    for c in cases:
+        zero = not np.any(_phi(c))
+        # at ω̄ = 0 a learner's own Rodrigues may raise (so3.hat(φ / θ) refusing a NaN)
+        got = _call_step(attitude_step, c["R"], c["w0"], c["w1"], c["b_w"], c["dt"],
+                         hint=f"on the case '{c['name']}', {_ZERO_RATE}" if zero else "")
+        got = _result(got, (3, 3), f"R_next on the case '{c['name']}'", nan_hint=_ZERO_RATE if zero else "")
+        if not so3.is_rotation(got, tol=1e-9):
+            err = np.max(np.abs(got.T @ got - np.eye(3)))
+            raise CheckFailed(
+                f"R_next on the case '{c['name']}' is not a rotation matrix (|RᵀR − I| = {err:.2g}). "
+                "Hint: compose with Exp(φ) (Rodrigues' formula), not with the first-order I + [φ]×; "
+                "a quaternion must be normalised to unit length before it becomes a matrix")
+        values.append(got)
+    _grade(values, cases, "R_next", ATTITUDE_ATOL, _ATTITUDE_MISTAKES,
+           hint=f"R_next = R Exp(ω̄ T) with ω̄ = {_MIDPOINT_RATE}", patterns=[(
+               _first_order, "R_next agrees with R Exp(ω̄ T) only to first order in φ = ω̄ T: a "
+               "first-order I + [φ]× (even re-orthonormalised) or a truncated series is not the "
+               "exponential; use Rodrigues' formula or so3.Exp(φ)")])
+
+
+# ----------------------------------------------------------------------------------------
+# The velocity step
+# ----------------------------------------------------------------------------------------
+
+def _acc(c, R0=None, R1=None, bias=None):
+    """½(R₀(f₀ − b) + R₁(f₁ − b)) of a velocity case, with any of its parts replaced."""
+    v, R0_, R1_, f0, f1, b_a, g, T = c["args"]
+    R0 = R0_ if R0 is None else R0
+    R1 = R1_ if R1 is None else R1
+    b = b_a if bias is None else bias
+    return 0.5 * (R0 @ (f0 - b) + R1 @ (f1 - b))
+
+
+def _v(c, acc, gravity=None, T=None, v0=None):
+    v, R0, R1, f0, f1, b_a, g, dt = c["args"]
+    g = g if gravity is None else gravity
+    T = dt if T is None else T
+    v = v if v0 is None else v0
+    return v + (acc + g) * T
+
+
+_GRAVITY_SIGN = ("gravity: a = R (f − b_a) + g, and g = (0, 0, −9.81) is given pointing down, so add g. "
+                 "(The lecture writes ½(R₁ā₁ + R₀ā₀) − g with g = (0, 0, +9.81) pointing up: the same "
+                 "formula for the other sign of g; a resting accelerometer reads f = +9.81 up and a = 0)")
+_HARD_CODED = ("use the gravity vector g handed in (it differs between the cases), not a hard-coded "
+               "constant: a = R (f − b_a) + g")
+_VELOCITY_MISTAKES = [
+    (lambda c: _v(c, _acc(c), gravity=-c["args"][6]), _GRAVITY_SIGN),
+    (lambda c: _v(c, _acc(c), gravity=np.array([0.0, 0.0, -9.81])), _HARD_CODED),
+    (lambda c: _v(c, _acc(c), gravity=np.array([0.0, 0.0, 9.81])), _HARD_CODED),
+    (lambda c: _v(c, _acc(c), gravity=np.array([0.0, 0.0, -9.8])), _HARD_CODED),
+    (lambda c: _v(c, _acc(c), gravity=np.array([0.0, 0.0, 9.8])), _HARD_CODED),
+    (lambda c: _v(c, _acc(c), gravity=np.array([0.0, 0.0, -9.80665])), _HARD_CODED),
+    (lambda c: _v(c, _acc(c), gravity=np.array([0.0, 0.0, 9.80665])), _HARD_CODED),
+    (lambda c: _v(c, _acc(c), gravity=np.array([0.0, 0.0, -9.8092])), _HARD_CODED),
+    (lambda c: _v(c, _acc(c), gravity=np.array([0.0, 0.0, 9.8092])), _HARD_CODED),
+    (lambda c: _v(c, _acc(c), gravity=np.zeros(3)),
+     "gravity is missing: the accelerometer measures specific force, a = R (f − b_a) + g"),
+    (lambda c: _v(c, _acc(c), gravity=0.5 * c["args"][6]),
+     "gravity is added once, in full: v_next = v + (½(a₀ + a₁) + g) T, with aᵢ = Rᵢ(fᵢ − b_a)"),
+    (lambda c: _v(c, _acc(c), gravity=2.0 * c["args"][6]),
+     "gravity is added once, not once per reading: v_next = v + (½(a₀ + a₁) + g) T"),
+    (lambda c: _v(c, 0.5 * (c["args"][1] @ (c["args"][3] - c["args"][5] + c["args"][6])
+                            + c["args"][2] @ (c["args"][4] - c["args"][5] + c["args"][6])), gravity=np.zeros(3)),
+     "gravity is a navigation-frame vector: add g after rotating the body-frame reading, "
+     "a = R (f − b_a) + g, not R (f − b_a + g)"),
+    (lambda c: _v(c, _acc(c)) - c["args"][6] * c["args"][7] + c["args"][6],
+     "gravity is an acceleration too: it changes the velocity by g T, not by g"),
+    (lambda c: _v(c, _acc(c, bias=np.zeros(3))),
+     "subtract the accelerometer bias from each reading: R (f − b_a)"),
+    (lambda c: _v(c, 0.5 * (c["args"][1] + c["args"][2]) @ (0.5 * (c["args"][3] + c["args"][4]) - c["args"][5])),
+     "rotate each reading with the attitude at its own time, then average: ½(R₀(f₀ − b_a) + R₁(f₁ − b_a)), "
+     "not the mean attitude times the mean reading"),
+    (lambda c: _v(c, _acc(c) + 0.5 * c["args"][2] @ c["args"][5]),
+     "subtract the accelerometer bias from each reading, R₀(f₀ − b_a) and R₁(f₁ − b_a), not from one only"),
+    (lambda c: _v(c, _acc(c) + 0.5 * c["args"][1] @ c["args"][5]),
+     "subtract the accelerometer bias from each reading, R₀(f₀ − b_a) and R₁(f₁ − b_a), not from one only"),
+    (lambda c: _v(c, _acc(c, bias=-c["args"][5])),
+     "the accelerometer bias is subtracted, not added: R (f − b_a)"),
+    (lambda c: _v(c, _acc(c, bias=np.zeros(3)) - c["args"][5]),
+     "the accelerometer bias is a body-frame quantity: subtract it before rotating, R (f − b_a), "
+     "not R f − b_a"),
+    (lambda c: _v(c, _acc(c, R1=c["args"][1])),
+     "the acceleration at the end of the step uses the NEW attitude: a₁ = R₁(f₁ − b_a), not R₀"),
+    (lambda c: _v(c, _acc(c, R0=c["args"][2])),
+     "the acceleration at the start of the step uses the OLD attitude: a₀ = R₀(f₀ − b_a), not R₁"),
+    (lambda c: _v(c, 0.5 * (c["args"][2] @ (c["args"][3] - c["args"][5])
+                            + c["args"][1] @ (c["args"][4] - c["args"][5]))),
+     "each reading is rotated with the attitude at its own time: R₀ with f₀, R₁ with f₁ (they are swapped)"),
+    (lambda c: _v(c, _acc(c, R0=np.eye(3), R1=np.eye(3))),
+     "the readings are in the body frame: rotate them into the navigation frame, a = R (f − b_a) + g"),
+    (lambda c: _v(c, _acc(c, R0=c["args"][1].T, R1=c["args"][2].T)),
+     "do not transpose R: R = R_nb maps body-frame readings to the navigation frame, a = R (f − b_a) + g"),
+    (lambda c: _v(c, c["args"][1] @ (c["args"][3] - c["args"][5])),
+     "midpoint rule: average the accelerations at both ends of the step, ½(a₀ + a₁), not the start "
+     "one only (that is Euler's rule)"),
+    (lambda c: _v(c, c["args"][2] @ (c["args"][4] - c["args"][5])),
+     "midpoint rule: average the accelerations at both ends of the step, ½(a₀ + a₁), not the end one only"),
+    (lambda c: _v(c, 2.0 * _acc(c)),
+     "midpoint rule: the mean acceleration is half the sum, ½(R₀(f₀ − b_a) + R₁(f₁ − b_a))"),
+    (lambda c: _v(c, _acc(c), T=c["args"][7] ** 2),
+     "the velocity changes by a T, with T, not T²: v_next = v + (½(a₀ + a₁) + g) T"),
+    (lambda c: _v(c, _acc(c), T=1.0),
+     "multiply the acceleration by the step: v_next = v + (½(a₀ + a₁) + g) T (m/s² × s)"),
+    (lambda c: _v(c, _acc(c), T=0.5 * c["args"][7]),
+     "the velocity changes by a T over the whole step, not by a T/2"),
+    (lambda c: _v(c, _acc(c), v0=np.zeros(3)),
+     "v_next is the previous velocity plus the increment: v + (½(a₀ + a₁) + g) T"),
+]
 
 
 @check
 def check_velocity_step(velocity_step):
     """``velocity_step(v, R0, R1, f0, f1, b_a, g, dt)`` returns the velocity at the next sample."""
-    g = np.array([0.0, 0.0, -9.8092])
-    # closed form: a level car at rest reads f = (0, 0, +9.81) and keeps its velocity
-    v = np.array([1.0, 2.0, 0.0])
-    f_rest = -g
-    got = call(velocity_step, v, np.eye(3), np.eye(3), f_rest, f_rest, np.zeros(3), g, 0.1)
-    expect_close(got, v, "v_next for a level IMU whose specific force cancels gravity", mistakes=[
-        (v + 2 * f_rest * 0.1, "gravity has the wrong sign: a = R (f − b_a) + g with g = (0, 0, −9.81), "
-                               "so a resting accelerometer (f = +9.81 up) gives a = 0")],
-        hint="a = R (f − b_a) + g; v_next = v + ½(a₀ + a₁) T")
-    for c in _kitti_cases():
-        R1 = reference_attitude_step(c["R"], c["w0"], c["w1"], c["b_w"], c["dt"])
-        args = (c["v"], c["R"], R1, c["f0"], c["f1"], c["b_a"], c["g"], c["dt"])
-        got = call(velocity_step, *args)
-        ref = reference_velocity_step(*args)
-        T = c["dt"]
-        expect_close(got, ref, "v_next on KITTI samples", atol=1e-12, mistakes=[
-            (ref - 2 * c["g"] * T, "gravity: a = R (f − b_a) + g with g = (0, 0, −9.81); add g, do not subtract it"),
-            (c["v"] + 0.5 * (c["R"] @ (c["f0"] - c["b_a"]) + c["R"] @ (c["f1"] - c["b_a"])) * T + c["g"] * T,
-             "the acceleration at the end of the step uses the NEW attitude R₁"),
-            (c["v"] + 0.5 * (c["R"] @ c["f0"] + R1 @ c["f1"]) * T + c["g"] * T,
-             "subtract the accelerometer bias: f − b_a"),
-            (c["v"] + (c["R"] @ (c["f0"] - c["b_a"]) + c["g"]) * T,
-             "midpoint rule: average the accelerations at both ends of the step"),
-        ], hint="v_next = v + ½(R₀(f₀ − b_a) + R₁(f₁ − b_a)) T + g T")
+    cases = _velocity_cases()
+    values = [_result(_call_step(velocity_step, *c["args"]), (3,), f"v_next on the case '{c['name']}'")
+              for c in cases]
+    _grade(values, cases, "v_next", VELOCITY_ATOL, _VELOCITY_MISTAKES,
+           hint="v_next = v + ½(R₀(f₀ − b_a) + R₁(f₁ − b_a)) T + g T, with R₁ the attitude at the end of "
+                "the step and g = (0, 0, −9.81) added")
+
+
+# ----------------------------------------------------------------------------------------
+# The position step
+# ----------------------------------------------------------------------------------------
+
+_POSITION_MISTAKES = [
+    (lambda c: c["args"][0] + c["args"][2] * c["args"][3],
+     "midpoint rule: use the mean velocity ½(v₀ + v₁), not the new one"),
+    (lambda c: c["args"][0] + c["args"][1] * c["args"][3],
+     "midpoint rule: use the mean velocity ½(v₀ + v₁), not the old one (that is Euler's rule)"),
+    (lambda c: c["args"][0] + (c["args"][1] + c["args"][2]) * c["args"][3],
+     "the ½ is missing: the mean velocity is ½(v₀ + v₁), p_next = p + ½(v₀ + v₁) T"),
+    (lambda c: c["args"][0] + 0.5 * (c["args"][1] + c["args"][2]) * c["args"][3] ** 2,
+     "the position changes by v T, with T, not T²: p_next = p + ½(v₀ + v₁) T"),
+    (lambda c: c["args"][0] + 0.5 * (c["args"][1] + c["args"][2]),
+     "multiply the mean velocity by the step: p_next = p + ½(v₀ + v₁) T (m/s × s)"),
+    (lambda c: c["args"][0] + 0.25 * (c["args"][1] + c["args"][2]) * c["args"][3],
+     "the ½ of the mean velocity is applied once: p_next = p + ½(v₀ + v₁) T"),
+    (lambda c: c["args"][0] + c["args"][1] * c["args"][3] + 0.5 * (c["args"][2] - c["args"][1]) * c["args"][3] ** 2,
+     "p + v₀T + ½aT² needs the acceleration a = (v₁ − v₀)/T, not the velocity change v₁ − v₀: "
+     "this gives p + v₀T + ½(v₁ − v₀)T = p + ½(v₀ + v₁) T"),
+    (lambda c: c["args"][0] + 0.5 * (c["args"][2] - c["args"][1]) * c["args"][3],
+     "sign: the mean velocity is ½(v₀ + v₁), a sum, not a difference"),
+    (lambda c: c["args"][0] + 0.5 * (c["args"][1] - c["args"][2]) * c["args"][3],
+     "sign: the mean velocity is ½(v₀ + v₁), a sum, not a difference"),
+    (lambda c: c["args"][0] - 0.5 * (c["args"][1] + c["args"][2]) * c["args"][3],
+     "sign: the position moves along the velocity, p_next = p + ½(v₀ + v₁) T"),
+    (lambda c: 0.5 * (c["args"][1] + c["args"][2]) * c["args"][3],
+     "p_next is the previous position plus the displacement: p + ½(v₀ + v₁) T"),
+    (lambda c: c["args"][0] + np.mean([c["args"][1], c["args"][2]]) * c["args"][3],
+     "the mean is over the two velocities (axis 0 of [v₀, v₁]), not over all six numbers: "
+     "np.mean([v0, v1], axis=0)"),
+]
 
 
 @check
 def check_position_step(position_step):
     """``position_step(p, v0, v1, dt)`` returns the position at the next sample."""
-    # closed form: constant acceleration a from v0 gives p + v0 T + ½ a T²
-    p, v0, a, T = np.array([1.0, -2.0, 0.5]), np.array([3.0, 1.0, 0.0]), np.array([0.5, -1.0, 0.2]), 0.2
-    v1 = v0 + a * T
-    got = call(position_step, p, v0, v1, T)
-    expect_close(got, p + v0 * T + 0.5 * a * T * T, "p_next under constant acceleration", mistakes=[
-        (p + v1 * T, "midpoint rule: use the mean velocity ½(v₀ + v₁), not the new one"),
-        (p + v0 * T, "midpoint rule: use the mean velocity ½(v₀ + v₁), not the old one"),
-    ], hint="p_next = p + ½(v₀ + v₁) T (exact for a constant acceleration)")
-    for c in _kitti_cases():
-        v1 = c["v"] + np.array([0.01, -0.02, 0.003])
-        expect_close(call(position_step, c["p"], c["v"], v1, c["dt"]),
-                     reference_position_step(c["p"], c["v"], v1, c["dt"]), "p_next on KITTI samples", atol=1e-12)
+    cases = _position_cases()
+    values = []
+    for c in cases:
+        values.append(_result(_call_step(position_step, *c["args"]), (3,), f"p_next on the case '{c['name']}'"))
+    _grade(values, cases, "p_next", POSITION_ATOL, _POSITION_MISTAKES,
+           hint="p_next = p + ½(v₀ + v₁) T (exact for a constant acceleration)")
 
 
-@check
-def check_mechanisation_run(mechanise):
-    """``mechanise(imu, state, g, start, stop)`` returns positions (n, 3), velocities, rotations."""
-    # synthetic motion whose truth the midpoint rule reproduces exactly
+# ----------------------------------------------------------------------------------------
+# The whole run
+# ----------------------------------------------------------------------------------------
+
+def _variant_run(imu, state, g, start, stop, *, dt="own", w_at=(-1, 0), f_at=(-1, 0), offset=True, pair="midpoint",
+                 turn=True, gravity=True, bias=None, vpair="midpoint", from_start=False):
+    """A mechanisation run with one plausible loop mistake (the reference when no flag is set).
+
+    Parameters
+    ----------
+    dt : {"own", "first", "slice", "next", "since"}
+        Each step's own t[k] − t[k−1]; the data's first t[1] − t[0]; the slice's first
+        t[start+1] − t[start]; the next interval t[k+1] − t[k]; or the time since the start.
+    w_at, f_at : (int, int)
+        The rates (specific forces) of the step to sample k are taken at k + w_at[0] and
+        k + w_at[1]: (−1, 0) is right.
+    offset : bool
+        False: the step index ignores ``start`` (k = i).
+    pair : {"midpoint", "old", "new", "swapped"}
+        The attitudes handed to the velocity step.
+    turn : bool
+        False: the attitude is never updated.
+    from_start : bool
+        True: every attitude step starts from the initial attitude instead of the previous one.
+    gravity : bool
+        False: zero gravity handed to the velocity step.
+    bias : array_like, optional
+        The accelerometer bias handed to the velocity step (g when g and the bias are swapped).
+    vpair : {"midpoint", "old", "new"}
+        The velocities handed to the position step.
+    """
+    n = stop - start
+    p, v, R = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3, 3))
+    p[0], v[0], R[0] = state.position, state.velocity, state.rotation
+    zero = np.zeros(3)
+    b_a = zero if bias is None else bias
+    g_used = g if gravity else zero
+    t, f, w = imu.t, imu.specific_force, imu.angular_rate
+    for i in range(1, n):
+        k = (start if offset else 0) + i
+        T = {"own": lambda: t[k] - t[k - 1], "first": lambda: t[1] - t[0],
+             "slice": lambda: t[start + 1] - t[start], "next": lambda: t[k + 1] - t[k],
+             "since": lambda: t[k] - t[start]}[dt]()
+        a, b = k + w_at[0], k + w_at[1]
+        R[i] = reference_attitude_step(R[0] if from_start else R[i - 1], w[a], w[b], zero, T) if turn else R[i - 1]
+        a, b = k + f_at[0], k + f_at[1]
+        R0, R1 = {"midpoint": (R[i - 1], R[i]), "old": (R[i - 1], R[i - 1]), "new": (R[i], R[i]),
+                  "swapped": (R[i], R[i - 1])}[pair]
+        v[i] = reference_velocity_step(v[i - 1], R0, R1, f[a], f[b], b_a, g_used, T)
+        v0, v1 = {"midpoint": (v[i - 1], v[i]), "old": (v[i - 1], v[i - 1]), "new": (v[i], v[i])}[vpair]
+        p[i] = reference_position_step(p[i - 1], v0, v1, T)
+    return p, v, R
+
+
+_OFF_BY_ONE = ("off by one: the step from sample k−1 to sample k uses the readings at k−1 and k and "
+               "dt = imu.t[k] − imu.t[k−1]")
+_RUN_MISTAKES = [
+    (dict(dt="first"), "KITTI's IMU timestamps are irregular (dt from 7.6 to 12 ms here): give every step its "
+                       "own dt = imu.t[k] − imu.t[k−1], not the first interval"),
+    (dict(dt="slice"), "KITTI's IMU timestamps are irregular (dt from 7.6 to 12 ms here): give every step its "
+                       "own dt = imu.t[k] − imu.t[k−1], not one interval for all"),
+    (dict(dt="next"), _OFF_BY_ONE + " (your dt is the next interval, imu.t[k+1] − imu.t[k])"),
+] + [
+    (dict(w_at=(0, 1), f_at=(0, 1)), _OFF_BY_ONE + " (your readings are those at k and k+1)"),
+    (dict(w_at=(0, 1)), _OFF_BY_ONE + " (your rates are those at k and k+1)"),
+    (dict(f_at=(0, 1)), _OFF_BY_ONE + " (your specific forces are those at k and k+1)"),
+    (dict(w_at=(-2, -1), f_at=(-2, -1)), _OFF_BY_ONE + " (your readings are those at k−2 and k−1)"),
+    (dict(w_at=(-2, -1)), _OFF_BY_ONE + " (your rates are those at k−2 and k−1)"),
+    (dict(f_at=(-2, -1)), _OFF_BY_ONE + " (your specific forces are those at k−2 and k−1)"),
+] + [
+    (dict(w_at=at, f_at=at2), "midpoint rule: the step from k−1 to k uses the readings at both ends, k−1 and k "
+                              f"(you passed one reading twice{note})")
+    for at, at2, note in (((-1, -1), (-1, -1), ": Euler's rule"), ((0, 0), (0, 0), ""),
+                          ((-1, -1), (-1, 0), ", the rate"), ((0, 0), (-1, 0), ", the rate"),
+                          ((-1, 0), (-1, -1), ", the specific force"), ((-1, 0), (0, 0), ", the specific force"))
+] + [
+    (dict(offset=False), "the run starts at sample `start`: the step to row i uses sample k = start + i, "
+                         "not k = i"),
+    (dict(pair="old"), "hand the velocity step the attitudes at both ends of the step, R[i−1] and the new "
+                       "R[i] (you passed the old attitude twice)"),
+    (dict(pair="new"), "hand the velocity step the attitudes at both ends of the step, R[i−1] and the new "
+                       "R[i] (you passed the new attitude twice)"),
+    (dict(pair="swapped"), "hand the velocity step the attitudes in the order of the readings: R[i−1] (with "
+                           "the reading at k−1), then R[i] (they are swapped)"),
+    (dict(dt="since"), "dt is the length of this step, imu.t[k] − imu.t[k−1], not the time since the start"),
+    (dict(from_start=True), "each attitude step starts from the previous row's attitude R[i−1], not from "
+                            "the initial one"),
+    (dict(turn=False), "the attitude is never updated: R[i] = attitude_step(R[i−1], ...)"),
+    (dict(gravity=False), "gravity is missing from the run: hand g to the velocity step"),
+    (dict(gravity=False, bias="g"), "gravity and the accelerometer bias are swapped in the call of "
+                                    "velocity_step(v, R0, R1, f0, f1, b_a, g, dt)"),
+    (dict(vpair="old"), "hand the position step the velocities at both ends of the step, v[i−1] and the new "
+                        "v[i] (you passed the old velocity twice)"),
+    (dict(vpair="new"), "hand the position step the velocities at both ends of the step, v[i−1] and the new "
+                        "v[i] (you passed the new velocity twice)"),
+]
+
+
+@functools.lru_cache(maxsize=None)
+def _run_scenarios():
+    """(name, imu, initial state, g, start, stop, reference (p, v, R)) of the two runs."""
+    # synthetic motion whose truth the midpoint rule reproduces exactly, with a constant dt;
+    # run to the last sample, so an index one past the end raises
     sc = imu_trajectory(3, duration=5.0)
-    start = NavState(sc.position[0], sc.velocity[0], sc.rotation[0])
-    g = np.array([0.0, 0.0, -9.8092])
-    result = call(mechanise, sc.imu_clean, start, g, 0, len(sc.t))
-    if not isinstance(result, tuple) or len(result) != 3:
-        raise CheckFailed("mechanise must return a tuple (positions (n, 3), velocities (n, 3), rotations (n, 3, 3))")
-    p = expect_shape(result[0], sc.position.shape, "positions")
-    expect_close(p, sc.position, "positions on synthetic motion with clean readings", atol=1e-6,
-                 hint=f"the error after 5 s is {np.linalg.norm(p[-1] - sc.position[-1]):.3g} m; the midpoint "
-                      "rule reproduces this truth to round-off")
+    state = NavState(sc.position[0], sc.velocity[0], sc.rotation[0])
+    synthetic = ("synthetic motion with clean readings", sc.imu_clean, state, GRAVITY.copy(), 0,
+                 len(sc.t), (sc.position, sc.velocity, sc.rotation))
+    # KITTI: irregular dt, a slice that starts at sample k0 and ends before the data's end
     name, k0, n = RUN_SLICE
     ex = load_kitti(name)
     nav = ex.truth.state_at(ex.imu.t[k0])
-    result = call(mechanise, ex.imu, nav, ex.gravity, k0, k0 + n)
-    if not isinstance(result, tuple) or len(result) != 3:
-        raise CheckFailed("mechanise must return a tuple (positions, velocities, rotations)")
     ref = dead_reckon(ex.imu, nav, ex.gravity, start=k0, stop=k0 + n)
-    expect_close(result[0], ref.position, f"positions on KITTI '{name}' samples {k0}..{k0 + n - 1}", atol=1e-6,
-                 hint="KITTI's IMU timestamps are irregular (dt from 2.6 to 20 ms): give every step its "
-                      "own dt = imu.t[k] − imu.t[k−1]")
-    expect_close(result[1], ref.velocity, "velocities on KITTI", atol=1e-8)
-    expect_close(result[2], ref.rotation, "rotations on KITTI", atol=1e-10)
+    kitti = (f"KITTI '{name}' samples {k0}..{k0 + n - 1}", ex.imu, nav, ex.gravity.copy(), k0, k0 + n,
+             (ref.position, ref.velocity, ref.rotation))
+    return synthetic, kitti
+
+
+#: Tolerances of the run, m, m/s and on rotation entries: the learner's loop of steps and
+#: the vectorised reference round differently; 500 steps accumulate ~1e-13 m. Every mistake
+#: above changes the KITTI positions by ≥ 4e-4 m within the run.
+RUN_ATOL = (1e-6, 1e-8, 1e-10)
+
+
+def _diagnose_run(result, scenario):
+    """Raise CheckFailed naming the loop mistake that reproduces the learner's run, if any."""
+    name, imu, state, g, start, stop, ref = scenario
+    p, v, R = result
+    if not (np.allclose(p[0], state.position) and np.allclose(v[0], state.velocity)
+            and np.allclose(R[0], state.rotation)):
+        raise CheckFailed(f"the first row on {name} is not the initial state. Hint: row 0 of positions, "
+                          "velocities and rotations is the state handed in (at imu.t[start])")
+    for flags, why in _RUN_MISTAKES:
+        flags = dict(flags, bias=g) if flags.get("bias") == "g" else flags
+        try:
+            wrong = _variant_run(imu, state, g, start, stop, **flags)
+        except IndexError:
+            continue
+        if all(np.allclose(x, y, rtol=0.0, atol=tol) for x, y, tol in zip(result, wrong, RUN_ATOL)):
+            raise CheckFailed(f"the run on {name} is wrong. Hint: {why}")
+    if np.allclose(R, np.swapaxes(ref[2], 1, 2), rtol=0.0, atol=RUN_ATOL[2]):
+        raise CheckFailed(f"rotations on {name} are transposed. Hint: return R_nb (body → navigation), "
+                          "as attitude_step computes it")
+    if all(np.allclose(x[:-1], y[:-1], rtol=0.0, atol=tol) for x, y, tol in zip(result, ref, RUN_ATOL)):
+        raise CheckFailed(f"the last state on {name} is wrong. Hint: the loop fills rows 1 .. n−1: "
+                          "for i in range(1, n) (did it stop one step early?)")
+
+
+@check(uses=("attitude_step", "velocity_step", "position_step"))
+def check_mechanisation_run(mechanise):
+    """``mechanise(imu, state, g, start, stop)`` returns positions (n, 3), velocities, rotations."""
+    for scenario in _run_scenarios():
+        name, imu, state, g, start, stop, ref = scenario
+        try:
+            result = call(mechanise, imu, state, g, start, stop)
+        except CheckFailed as exc:
+            if "IndexError" in str(exc):
+                raise CheckFailed(f"{exc} (on {name}, samples {start}..{stop - 1}). Hint: " + _OFF_BY_ONE
+                                  + "; the loop makes n − 1 steps, for i in range(1, n)") from None
+            raise
+        n = stop - start
+        result = _run_arrays(result, n, name)
+        if all(np.allclose(x, y, rtol=0.0, atol=tol) for x, y, tol in zip(result, ref, RUN_ATOL)):
+            continue
+        _diagnose_run(result, scenario)
+        for x, what in zip(result, ("positions", "velocities", "rotations")):
+            if not np.all(np.isfinite(x)):
+                raise CheckFailed(f"{what} on {name} contain NaN or inf. Hint: every row 1 .. n−1 is "
+                                  "filled by one step from the row before it")
+        for x, y, what, tol in zip(result, ref, ("positions", "velocities", "rotations"), RUN_ATOL):
+            if not np.allclose(x, y, rtol=0.0, atol=tol):
+                k = int(np.argmax(np.abs(x - y).reshape(n, -1).max(axis=1) > tol))
+                raise CheckFailed(
+                    f"{what} on {name} differ from the reference from row {k} on (max abs error "
+                    f"{np.max(np.abs(x - y)):.3g}). Hint: each row i ≥ 1 is one midpoint step from row i − 1 "
+                    "with the readings at k − 1 and k = start + i and dt = imu.t[k] − imu.t[k−1]")
+
+
+def _run_arrays(result, n, name):
+    """The three returned arrays, of shapes (n, 3), (n, 3), (n, 3, 3) (NaN allowed here)."""
+    if not isinstance(result, (tuple, list)) or len(result) != 3:
+        raise CheckFailed("mechanise must return a tuple (positions (n, 3), velocities (n, 3), "
+                          "rotations (n, 3, 3))")
+    arrays = []
+    for value, what, shape in zip(result, ("positions", "velocities", "rotations"),
+                                  ((n, 3), (n, 3), (n, 3, 3))):
+        arr = as_array(value, f"{what} on {name}")
+        if arr.shape != shape:
+            raise CheckFailed(f"{what} on {name} have shape {arr.shape}, expected {shape}. Hint: return "
+                              "(positions, velocities, rotations), in this order, one row per sample "
+                              f"start .. stop−1 (n = {n})")
+        arrays.append(arr)
+    return tuple(arrays)

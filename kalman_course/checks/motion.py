@@ -1,8 +1,12 @@
 """Checks for chapter 04: the CTRV step and its Jacobian, graded on KITTI states.
 
 The states are the car's true CTRV states [p_x, p_y, v, ψ, ω] on the KITTI excerpts
-(ω from the gyro), plus the same states driving straight (ω = 0 exactly), where the
-closed form divides by zero and the straight-line limit must take over.
+(ω from the gyro), then the same car driving straight (ω = 0 exactly), then a sweep of
+turn rates towards ω = 0 — just above and below the lecture's switch to the series
+(``symbolic.OMEGA_SERIES_THRESHOLD`` on |ω T|), 1e-3 … 1e-12 — at headings in all four
+quadrants and near ±π. The sweep is where lecture 04's failure lives: the closed form
+subtracts two nearly equal sines and divides by a tiny ω, so code that branches on
+``omega != 0`` is fine at ω = 0 and at real turn rates and wrong in between.
 """
 
 from __future__ import annotations
@@ -12,30 +16,94 @@ import functools
 import numpy as np
 
 from kalman_course import symbolic
-from kalman_course.checks.harness import CheckFailed, call, check, expect_close, expect_shape
+from kalman_course.checks.harness import CheckFailed, as_array, call, check, expect_close, expect_shape
 from kalman_course.chapters.motion import kitti_model_states
 
 EXCERPTS = ("turns", "stop_go")
 STEPS = (0.1, 1.0)
+THRESHOLD = symbolic.OMEGA_SERIES_THRESHOLD
+
+# Turn rates of the sweep, as fractions of the switch (|ω T| = THRESHOLD, just above and just
+# below it) and as absolute rates in rad/s, largest |ω T| first: a mistake in the series
+# branch shows just below the switch, where cancellation cannot be the cause; cancellation
+# shows at the tiny rates, where the series terms beyond the straight line vanish.
+SWITCH_FRACTIONS = (1.0 + 1e-6, -(1.0 - 1e-6))
+SWEEP_RATES = (1e-3, -1e-4, 1e-5, -1.01e-6, 1e-7, -1e-9, 1e-12, -1e-12)
+# headings of the sweep: all four quadrants, and near ±π where ψ wraps
+SWEEP_HEADINGS = ((0.3, -2.9), (2.0, -1.2), (3.1, -0.05))
+
+# ctrv_step tolerance, on the step's increment f(x) − x: 1e-6 of the distance travelled
+# v T (plus 1e-12 m of round-off). The closed form above the switch and the lecture's series
+# below it are exact to ~1e-13 of v T; the straight line (the exercise's ω → 0 limit) errs by
+# v T |ω T| / 2, so it is accepted for |ω T| ≲ 2e-6 (its first-order form, where the closed
+# form would already lose digits) and rejected further out; the closed form at |ω T| = 1e-12
+# loses ~1e-4 of v T to cancellation, which must fail.
+STEP_RTOL = 1e-6
+# ctrv_jacobian tolerance: 2e-5 of each column's largest entry (every column holds a 1 on the
+# diagonal, so this is at least 2e-5 absolute). A forward difference of the step errs by up to
+# 5e-7 (h = 1e-6) … 8e-6 (h = 1e-8, round-off on positions of ~400 m) of that scale and must
+# pass, a central difference by ~1e-8; the closed form just above |ω| = 1e-6 errs by ~4e-2 of
+# it, and at ω = 1e-9 by 4.5e2 absolute, which must fail.
+JACOBIAN_RTOL = 2e-5
 
 
-@functools.lru_cache(maxsize=None)
-def kitti_ctrv_cases(count: int = 6, seed: int = 4):
-    """(state, T) pairs: KITTI CTRV states at two step lengths, turning and straight."""
-    rng = np.random.default_rng(seed)
-    cases = []
+def _kitti_states(count: int, rng) -> np.ndarray:
+    """Moving KITTI CTRV states: the hardest-turning one and ``count - 1`` random ones per excerpt."""
+    picked = []
     for name in EXCERPTS:
         _, states = kitti_model_states(name, "ctrv")
         moving = states[states[:, 2] > 2.0]
-        # the states turning hardest, then random ones, then the same driving straight
-        hardest = moving[np.argsort(-np.abs(moving[:, 4]))[:2]]
-        picked = np.vstack([hardest, moving[rng.choice(len(moving), size=count - 2, replace=False)]])
-        straight = picked[:2].copy()
-        straight[:, 4] = 0.0
-        for state in np.vstack([picked, straight]):
-            for T in STEPS:
-                cases.append((state, T))
-    return tuple(cases)
+        hardest = moving[np.argmax(np.abs(moving[:, 4]))]
+        others = moving[rng.choice(len(moving), size=count - 1, replace=False)]
+        picked.append(np.vstack([hardest, others]))
+    return np.vstack(picked)
+
+
+@functools.lru_cache(maxsize=None)
+def kitti_ctrv_cases(count: int = 3, seed: int = 4):
+    """(state, T, f(x), F) of the checks, in the order they are tried.
+
+    Parameters
+    ----------
+    count : int
+        KITTI states per excerpt turning at their gyro rate.
+    seed : int
+        Seed of the random choice of states.
+
+    Returns
+    -------
+    tuple of (ndarray (5,), float, ndarray (5,), ndarray (5, 5))
+        State, step T (s), the reference step and Jacobian.
+
+    Notes
+    -----
+    KITTI states turning at their gyro rate (``count`` per excerpt, two steps each), the
+    first two of them driving straight (ω = 0), then the ω sweep on two further KITTI states
+    at the headings of ``SWEEP_HEADINGS``. The references are computed once.
+    """
+    rng = np.random.default_rng(seed)
+    turning = _kitti_states(count, rng)
+    states = [(x, T) for x in turning for T in STEPS]
+    for x in turning[:2]:
+        straight = x.copy()
+        straight[4] = 0.0
+        states += [(straight, T) for T in STEPS]
+    base = _kitti_states(1, rng)
+    for T in STEPS:
+        rates = [THRESHOLD / T * f for f in SWITCH_FRACTIONS] + list(SWEEP_RATES)
+        for k, om in enumerate(rates):
+            x = base[k % 2].copy()
+            x[3] = SWEEP_HEADINGS[k % 3][(k // 3) % 2]
+            x[4] = om
+            states.append((x, T))
+    return tuple((x, T, symbolic.ctrv_step(x, T), symbolic.ctrv_jacobian(x, T)) for x, T in states)
+
+
+def _where(x, T) -> str:
+    om = x[4]
+    if om == 0.0:
+        return f"driving straight (ω = 0), T = {T} s"
+    return f"turning at ω = {om:.3g} rad/s (|ω T| = {abs(om * T):.3g} rad), T = {T} s"
 
 
 def _straight_line(x, T):
@@ -43,51 +111,242 @@ def _straight_line(x, T):
     return np.array([px + v * T * np.cos(psi), py + v * T * np.sin(psi), v, psi + om * T, om])
 
 
+def _near_zero_hint(x, T, what: str) -> str:
+    """The hint for a wrong result at 0 < |ω T| < THRESHOLD that matches no known formula.
+
+    Parameters
+    ----------
+    x : ndarray, shape (5,)
+        The state of the case; T : float, its step (s).
+    what : str
+        "step" or "Jacobian".
+
+    Returns
+    -------
+    str
+        For |ω T| ≥ 1e-4, where cancellation costs nothing measurable, a hint on the series
+        branch; below, a hint naming the cancellation of the closed form.
+    """
+    wt = abs(x[4] * T)
+    if wt >= 1e-4:
+        # cancellation costs at most ~1e-12 here: the series branch itself is wrong
+        return (f"just below the switch to the series (|ω T| < {THRESHOLD}) your {what} disagrees "
+                "with the closed form: check the series branch — the integrand's Taylor series "
+                "v T Σ_k (ω T)^k / (k+1)! · (cos, sin)(ψ + k π/2), with enough terms (the lecture "
+                "keeps 8; the straight line is only the k = 0 term)")
+    return (f"at |ω T| = {wt:.1g} the closed form loses its digits to cancellation: sin(ψ + ω T) − "
+            "sin ψ subtracts two nearly equal numbers and the tiny ω divides the round-off up (by "
+            "1/ω in the step, 1/ω² in its Jacobian). Switching to the limit only at ω = 0 (omega "
+            "!= 0) or at a tiny |ω| such as 1e-6 is not enough: below the lecture's switch |ω T| < "
+            f"symbolic.OMEGA_SERIES_THRESHOLD = {THRESHOLD} use the ω → 0 limit (the series)")
+
+
+def _finite_or_limit(value, shape, x, T, what: str) -> np.ndarray:
+    """``expect_shape``, but a NaN or inf near ω = 0 is named: the missing ω → 0 limit.
+
+    Parameters
+    ----------
+    value : object
+        The learner's result.
+    shape : tuple of int
+        The expected shape.
+    x : ndarray, shape (5,)
+        The state of the case; T : float, its step (s).
+    what : str
+        The quantity's name for the message.
+
+    Returns
+    -------
+    ndarray
+        ``value`` as a finite float array of ``shape``.
+    """
+    arr = as_array(value, what)
+    if arr.shape == tuple(shape) and not np.all(np.isfinite(arr)) and abs(x[4] * T) < THRESHOLD:
+        raise CheckFailed(f"{what} contains NaN or inf {_where(x, T)}. Hint: the closed form divides "
+                          "by ω; the ω → 0 limit is missing. For |ω T| below the lecture's switch "
+                          f"(symbolic.OMEGA_SERIES_THRESHOLD = {THRESHOLD}) use the limit: the Taylor "
+                          "series in ω, whose first term is the straight line p += v T (cos ψ, sin ψ)")
+    return expect_shape(arr, shape, what)
+
+
+def _call_near_zero(fn, x, T):
+    """Call the learner's ``fn(x, T)``; a division by ω = 0 is named as the missing limit.
+
+    Parameters
+    ----------
+    fn : callable
+        The learner's ``ctrv_step`` or ``ctrv_jacobian``.
+    x : ndarray, shape (5,)
+        The CTRV state; T : float, the step (s).
+
+    Returns
+    -------
+    object
+        What ``fn`` returned.
+
+    Raises
+    ------
+    CheckFailed
+        If ``fn`` raises; at ω = 0 a ``ZeroDivisionError`` is named as the missing ω → 0 limit.
+    """
+    try:
+        return call(fn, x, T)
+    except CheckFailed as exc:
+        if x[4] == 0.0 and "ZeroDivision" in str(exc):
+            raise CheckFailed(f"{exc} {_where(x, T)}. Hint: the closed form divides by ω; the ω → 0 "
+                              "limit is missing (below |ω T| < symbolic.OMEGA_SERIES_THRESHOLD use "
+                              "the series, whose first term is the straight line)") from None
+        raise
+
+
+def _step_mistakes(x, T, expected):
+    """(wrong increment, hint) of known wrong steps; a generator, so built only on failure."""
+    px, py, v, psi, om = x
+    x = np.asarray(x, dtype=float)
+    wt = om * T
+
+    def variant(**parts):
+        wrong = expected.copy()
+        for i, value in parts.items():
+            wrong[int(i[1:])] = value
+        return wrong - x
+
+    if om != 0.0:
+        straight = _straight_line(x, T) - x
+        if abs(wt) < THRESHOLD:
+            yield straight, (f"at |ω T| = {abs(wt):.3g} your step is the straight line, which errs by "
+                             f"v T |ω T| / 2 = {abs(v * T * wt) / 2:.2g} m here: the straight line is only "
+                             "the first term of the ω → 0 series; below the switch keep the series' "
+                             "terms in ω T (or use the straight line only where |ω T| ≲ 1e-6)")
+        else:
+            yield straight, ("with ω ≠ 0 the car turns: use the closed form; the straight line is "
+                             "only the ω → 0 limit")
+        yield variant(i1=py + v / om * (np.cos(psi + wt) - np.cos(psi))), (
+            "p_y: the integral of v sin(ψ + ω t) is v/ω (cos ψ − cos(ψ + ω T)); check the order "
+            "of the cosines")
+        yield variant(i0=px + v / om * (np.sin(psi) - np.sin(psi + wt))), (
+            "p_x: the integral of v cos(ψ + ω t) is v/ω (sin(ψ + ω T) − sin ψ); check the order "
+            "of the sines")
+        yield variant(i0=px + v / om * (np.cos(psi) - np.cos(psi + wt)),
+                      i1=py + v / om * (np.sin(psi + wt) - np.sin(psi))), (
+            "p_x and p_y are swapped: p_x integrates v cos(ψ + ω t), p_y integrates v sin(ψ + ω t)")
+        no_t = "T is missing inside the sine/cosine: the heading after the step is ψ + ω T"
+        px_no_t = px + v / om * (np.sin(psi + om) - np.sin(psi))
+        py_no_t = py + v / om * (np.cos(psi) - np.cos(psi + om))
+        yield variant(i0=px_no_t), no_t
+        yield variant(i1=py_no_t), no_t
+        yield variant(i0=px_no_t, i1=py_no_t), no_t
+    yield variant(i3=psi + om), "the heading turns by ω T over the step: ψ += ω T (T is missing)"
+    yield variant(i3=psi), "the heading must turn over the step: ψ += ω T"
+    yield variant(i0=px + v * T * np.cos(psi + wt), i1=py + v * T * np.sin(psi + wt)), (
+        "you moved along the heading at the end of the step; the car turns during the step: "
+        "integrate v (cos, sin)(ψ + ω t) over t in [0, T] (a series whose terms are divided by k! "
+        "instead of (k+1)! sums to exactly this: ∫₀ᵀ (ω t)^k / k! dt = T (ω T)^k / (k+1)!)")
+    per_second = expected[:2] + (expected[:2] - x[:2]) * (1.0 / T - 1.0)
+    yield variant(i0=per_second[0], i1=per_second[1]), (
+        "the distance travelled over the step is v T, not v (a factor T is missing in front)")
+    yield variant(i0=px + v * T, i1=py), ("the car moves along its heading: p_x += v T cos ψ and "
+                                          "p_y += v T sin ψ (the heading is missing)")
+    yield variant(i0=px + v * T * np.sin(psi), i1=py + v * T * np.cos(psi)), (
+        "cos and sin swapped: p_x moves by v T cos ψ and p_y by v T sin ψ (ψ from the x axis)")
+    yield expected[[0, 1, 3, 2, 4]] - x, ("the state order is [p_x, p_y, v, ψ, ω]: v and ψ are "
+                                          "swapped in the returned state")
+
+
 @check
 def check_ctrv_step(ctrv_step):
-    """The learner's ``ctrv_step(x, T)`` (noise-free) against the derived model."""
-    for x, T in kitti_ctrv_cases():
-        expected = symbolic.ctrv_step(x, T)
-        got = expect_shape(call(ctrv_step, x, T), (5,), f"ctrv_step(x, T={T})")
-        px, py, v, psi, om = x
-        mistakes = []
+    """The learner's ``ctrv_step(x, T)`` (noise-free) against the derived model.
+
+    Turning KITTI states, the same driving straight, and the sweep of turn rates down to
+    ±1e-12 rad/s (see :data:`STEP_RTOL` for the tolerance and its reason).
+    """
+    for x, T, expected, _ in kitti_ctrv_cases():
+        what = f"ctrv_step(x, T={T})"
+        got = _finite_or_limit(_call_near_zero(ctrv_step, x, T), (5,), x, T, what)
+        # a heading wrapped into (−π, π] is the same heading: compare ψ modulo 2π (only when it
+        # is a whole number of turns off, so that other wrong values still match their mistakes)
+        unwrapped = expected[3] + (got[3] - expected[3] + np.pi) % (2 * np.pi) - np.pi
+        if abs(unwrapped - expected[3]) < 1e-9 and unwrapped != got[3]:
+            got = got.copy()
+            got[3] = unwrapped
+        # compare increments: the tolerance is a fraction of the distance travelled, not of the
+        # KITTI coordinates (hundreds of metres), which would hide the ω → 0 errors
+        atol = STEP_RTOL * abs(x[2]) * T + 1e-12
+        hint = (_near_zero_hint(x, T, "step") if 0.0 < abs(x[4] * T) < THRESHOLD else
+                "p_x += v/ω (sin(ψ + ω T) − sin ψ), p_y += v/ω (cos ψ − cos(ψ + ω T)), ψ += ω T; "
+                f"below |ω T| < {THRESHOLD} the ω → 0 limit (the series)")
+        expect_close(got - x, expected - x, f"the increment of ctrv_step at a KITTI state {_where(x, T)}",
+                     rtol=0.0, atol=atol, mistakes=_step_mistakes(x, T, expected), hint=hint)
+
+
+def _jacobian_mistakes(x, T, expected):
+    """(wrong Jacobian, hint) of known wrong Jacobians; a generator, built only on failure."""
+    v, psi, om = x[2], x[3], x[4]
+    no_omega = expected.copy()
+    no_omega[:2, 4] = 0.0
+    bend = ("the turn rate still bends the path over the step: ∂p_x/∂ω → −v T² sin ψ / 2 and "
+            "∂p_y/∂ω → v T² cos ψ / 2 as ω → 0 (the limit of the turning Jacobian), not 0 — "
+            "differentiate first, then let ω → 0 (substituting ω = 0 before differentiating "
+            "loses the ω column)")
+    if abs(om * T) < THRESHOLD:
+        # the hand-typed straight-line Jacobian (first order in ω) used up to the switch
+        first_order = np.eye(5)
+        first_order[0, 2], first_order[1, 2] = T * np.cos(psi), T * np.sin(psi)
+        first_order[0, 3], first_order[1, 3] = -v * T * np.sin(psi), v * T * np.cos(psi)
+        first_order[3, 4] = T
+        first_order[0, 4], first_order[1, 4] = -0.5 * v * T**2 * np.sin(psi), 0.5 * v * T**2 * np.cos(psi)
+        # the ω column lost (ω = 0 substituted before differentiating), here or at ω = 0
+        for base in (expected, first_order):
+            lost = base.copy()
+            lost[:2, 4] = 0.0
+            yield lost, bend
+            lost[3, 4] = 0.0
+            yield lost, bend + "; and ∂ψ/∂ω = T"
+            lost[4, 4] = 0.0
+            yield lost, bend + "; the whole ω column is gone (∂ψ/∂ω = T, ∂ω/∂ω = 1)"
         if om != 0.0:
-            flipped = expected.copy()
-            flipped[1] = py + v / om * (np.cos(psi + om * T) - np.cos(psi))
-            mistakes.append((flipped, "p_y: the integral of v sin(ψ + ω t) is "
-                                      "v/ω (cos ψ − cos(ψ + ω T)); check the order of the cosines"))
-            mistakes.append((_straight_line(x, T), "with ω ≠ 0 the car turns: use the closed form, "
-                                                   "the straight line is only the ω → 0 limit"))
-        else:
-            no_heading = expected.copy()
-            no_heading[0], no_heading[1] = px + v * T, py
-            mistakes.append((no_heading, "straight-line branch: the car moves along its heading, "
-                                         "p_x += v T cos ψ and p_y += v T sin ψ"))
-        where = "driving straight (ω = 0)" if om == 0.0 else f"turning at ω = {om:.3f} rad/s"
-        expect_close(got, expected, f"ctrv_step at a KITTI state {where}, T = {T} s", rtol=1e-7,
-                     atol=1e-7, mistakes=mistakes,
-                     hint="p_x += v/ω (sin(ψ + ω T) − sin ψ), p_y += v/ω (cos ψ − cos(ψ + ω T)), "
-                          "ψ += ω T; for |ω| tiny use the straight line")
+            yield first_order, (f"at |ω T| = {abs(om * T):.3g} you used the Jacobian of the straight "
+                                "line (first order in ω), which errs by ~v T³ |ω| / 3 in ∂p/∂ω: below "
+                                "the switch differentiate the ω-series, not only its straight-line term")
+    for wrong_t in (0.0, 1.0):
+        missing_t = expected.copy()
+        missing_t[3, 4] = wrong_t
+        yield missing_t, "∂ψ/∂ω = T: the heading after the step is ψ + ω T"
+    if abs(om * T) >= THRESHOLD:
+        # the Jacobian of a closed form with p_y's cosines in the wrong order (row 1 flips sign
+        # in its ∂/∂v, ∂/∂ψ and ∂/∂ω entries)
+        flipped = expected.copy()
+        flipped[1, 2:5] = -flipped[1, 2:5]
+        yield flipped, ("p_y: the integral of v sin(ψ + ω t) is v/ω (cos ψ − cos(ψ + ω T)); check "
+                        "the order of the cosines in the model you differentiate")
+    yield symbolic.ctrv_jacobian(np.asarray(x, dtype=float)[[0, 1, 3, 2, 4]], T), (
+        "the Jacobian is evaluated with v and ψ exchanged: the arguments of the lambdified "
+        "function are in another order than the call (p_x, p_y, v, ψ, ω, T)")
+    yield expected.T, "the Jacobian is transposed: F[i, j] = ∂f_i/∂x_j (row = output, column = state)"
+    yield expected - np.eye(5), ("the identity is missing: f(x) = x + Δ(x), so F = I + ∂Δ/∂x "
+                                 "(∂p_x/∂p_x = 1, ∂v/∂v = 1, ...)")
+    yield symbolic.ctrv_jacobian(symbolic.ctrv_step(x, T), T), (
+        "wrong point of linearisation: F is evaluated at the state x the step starts from, not at "
+        "the predicted state f(x)")
 
 
-@check
+@check(uses=("ctrv_step",))
 def check_ctrv_jacobian(ctrv_jacobian):
-    """The learner's ``ctrv_jacobian(x, T)`` against SymPy's, turning and at ω = 0."""
-    for x, T in kitti_ctrv_cases():
-        expected = symbolic.ctrv_jacobian(x, T)
-        got = call(ctrv_jacobian, x, T)
+    """The learner's ``ctrv_jacobian(x, T)`` against SymPy's, turning, at ω = 0 and towards it.
+
+    Finite differences of a correct step pass (see :data:`JACOBIAN_RTOL`). A Jacobian that
+    calls the learner's ``ctrv_step`` (finite differences) is blamed on ``ctrv_step`` first
+    when that one fails its own check.
+    """
+    for x, T, _, expected in kitti_ctrv_cases():
+        what = f"ctrv_jacobian(x, T={T})"
+        got = _call_near_zero(ctrv_jacobian, x, T)
         if np.shape(got) == (5, 4):
             raise CheckFailed("ctrv_jacobian has shape (5, 4): differentiate with respect to all five "
                               "state components, ω included")
-        got = expect_shape(got, (5, 5), f"ctrv_jacobian(x, T={T})")
-        mistakes = []
-        if x[4] == 0.0:
-            no_omega = expected.copy()
-            no_omega[:2, 4] = 0.0
-            mistakes.append((no_omega, "at ω = 0 the turn rate still bends the path: ∂p_x/∂ω = "
-                                       "−v T² sin ψ / 2 and ∂p_y/∂ω = v T² cos ψ / 2 (the limit of the "
-                                       "turning Jacobian), not 0"))
-        where = "driving straight (ω = 0)" if x[4] == 0.0 else f"turning at ω = {x[4]:.3f} rad/s"
-        expect_close(got, expected, f"ctrv_jacobian at a KITTI state {where}, T = {T} s", rtol=1e-6,
-                     atol=1e-7, mistakes=mistakes,
-                     hint="compare your Jacobian with finite differences of your ctrv_step")
+        got = _finite_or_limit(got, (5, 5), x, T, what)
+        atol = JACOBIAN_RTOL * np.abs(expected).max(axis=0)   # per column, broadcast over rows
+        hint = (_near_zero_hint(x, T, "Jacobian") if 0.0 < abs(x[4] * T) < THRESHOLD else
+                "compare your Jacobian with finite differences of your ctrv_step")
+        expect_close(got, expected, f"ctrv_jacobian at a KITTI state {_where(x, T)}", rtol=0.0,
+                     atol=atol, mistakes=_jacobian_mistakes(x, T, expected), hint=hint)

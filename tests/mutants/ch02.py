@@ -1,0 +1,195 @@
+"""Chapter 02 (Gaussians): plausible mistakes in the exercise's functions.
+
+The solution's cells: ``conditional`` (gaussian_conditional, graded by conditional_mean and
+conditional_covariance) and ``linear`` (linear_map_moments).
+"""
+
+from mutation_harness import Edit, Equivalent
+
+NOTEBOOK = "02_gaussians"
+
+_MEAN = "mean = mu_x + Sigma_xy @ np.linalg.solve(Sigma_yy, y - mu_y)"
+_COV = "cov = Sigma_xx - Sigma_xy @ np.linalg.solve(Sigma_yy, Sigma_xy.T)"
+_RET = "return mean, 0.5 * (cov + cov.T)"
+_SYY = "Sigma_yy = G @ Sigma_xx @ G.T + R"
+_SXY = "Sigma_xy = Sigma_xx @ G.T"
+_MUY = "mu_y = G @ mu_x"
+_LRET = "return mu_y, Sigma_yy, Sigma_xy"
+
+MUTANTS = [
+    # --- conditional_mean ---------------------------------------------------------------
+    Edit("conditional_mean", _MEAN, "mean = mu_x + Sigma_xy @ (y - mu_y)",
+         keyword="inverse of Σ_yy", mistake="Σ_yy⁻¹ left out (the stub)"),
+    Edit("conditional_mean", _MEAN, "mean = mu_x + Sigma_xy @ Sigma_yy @ (y - mu_y)",
+         keyword="where its inverse belongs", mistake="Σ_yy instead of Σ_yy⁻¹"),
+    Edit("conditional_mean", _MEAN, "mean = mu_x - Sigma_xy @ np.linalg.solve(Sigma_yy, y - mu_y)",
+         keyword="sign", mistake="the correction subtracted"),
+    Edit("conditional_mean", _MEAN, "mean = mu_x + Sigma_xy @ np.linalg.solve(Sigma_yy, mu_y - y)",
+         keyword="sign", mistake="innovation μ_y − y"),
+    Edit("conditional_mean", _MEAN, "mean = mu_x",
+         keyword="did not move", mistake="the prior mean returned"),
+    Edit("conditional_mean", _MEAN, "mean = mu_x + Sigma_xy @ np.linalg.solve(Sigma_yy, y)",
+         keyword="mean of y is missing", mistake="innovation y instead of y − μ_y"),
+    Edit("conditional_mean", _MEAN, "mean = mu_x + Sigma_xy @ ((y - mu_y) / np.diag(Sigma_yy))",
+         keyword="diagonal", mistake="the scalar formula σ_xy / σ_yy² per component (diagonal only)"),
+    Edit("conditional_mean", _MEAN, "mean = mu_x + Sigma_xy.T @ np.linalg.solve(Sigma_yy, y - mu_y)",
+         keyword="transposed", mistake="Σ_xy transposed in the gain"),
+    Edit("conditional_mean", _MEAN, "mean = mu_x + Sigma_xy @ np.linalg.solve(Sigma_yy, y - mu_x)",
+         keyword="not μ_x", mistake="innovation y − μ_x"),
+    Edit("conditional_mean", _MEAN, "mean = mu_y + Sigma_xy @ np.linalg.solve(Sigma_yy, y - mu_y)",
+         keyword="starts from μ_x", mistake="starts from μ_y"),
+    Edit("conditional_mean", _MEAN, "mean = mu_x + np.linalg.solve(Sigma_yy, Sigma_xy) @ (y - mu_y)",
+         keyword="transpose", mistake="gain as solve(Σ_yy, Σ_xy) (Σ_yy⁻¹ Σ_xy, shapes only fit for n = m)"),
+    # a transposed Σ_xy in the covariance line breaks the whole function when n ≠ m: the mean
+    # check must say so rather than show numpy's solve error
+    Edit("conditional_mean", _COV, "cov = Sigma_xx - Sigma_xy @ np.linalg.solve(Sigma_yy, Sigma_xy)",
+         keyword="transposed", mistake="Σ_xy instead of Σ_yx in the covariance (raises for n ≠ m)"),
+    Edit("conditional_mean", _RET, "return cov, mean",
+         keyword="order", mistake="(cov, mean) returned"),
+
+    # --- conditional_covariance ---------------------------------------------------------
+    Edit("conditional_covariance", _COV,
+         "cov = Sigma_xx + Sigma_xy @ np.linalg.solve(Sigma_yy, Sigma_xy.T)",
+         keyword="sign", mistake="the Schur term added (the stub)"),
+    Edit("conditional_covariance", _COV, "cov = Sigma_xx",
+         keyword="did not shrink", mistake="the prior covariance returned"),
+    Edit("conditional_covariance", _COV, "cov = Sigma_xx - Sigma_xy @ Sigma_xy.T",
+         keyword="Σ_yy⁻¹ is missing", mistake="Σ_yy⁻¹ left out"),
+    Edit("conditional_covariance", _COV, "cov = Sigma_xx - Sigma_xy @ Sigma_yy @ Sigma_xy.T",
+         keyword="where its inverse belongs", mistake="Σ_yy instead of Σ_yy⁻¹"),
+    Edit("conditional_covariance", _COV,
+         "cov = Sigma_xx - Sigma_xy @ (Sigma_xy.T / np.diag(Sigma_yy)[:, None])",
+         keyword="diagonal", mistake="only the variances of y used"),
+    Edit("conditional_covariance", _COV,
+         "cov = Sigma_xx - Sigma_xy @ np.linalg.solve(Sigma_yy, Sigma_xy)",
+         keyword="transposed", mistake="Σ_xy where Σ_yx belongs (the issue's raw solve error)"),
+    Edit("conditional_covariance", _COV,
+         "cov = Sigma_xx - Sigma_xy.T @ np.linalg.solve(Sigma_yy, Sigma_xy)",
+         keyword="transposed", mistake="Σ_xy and Σ_yx swapped"),
+    Edit("conditional_covariance", _COV,
+         "cov = Sigma_xx - np.linalg.inv(Sigma_yy) @ Sigma_xy.T @ Sigma_xy",
+         keyword="wrong order", mistake="factors in the wrong order, Σ_yy⁻¹ Σ_yx Σ_xy"),
+    Edit("conditional_covariance", _COV,
+         "cov = Sigma_yy - Sigma_xy.T @ np.linalg.solve(Sigma_xx, Sigma_xy)",
+         keyword="y given x", mistake="the Schur complement of the other block, Σ_y|x"),
+    Edit("conditional_covariance", _RET, "return mean, Sigma_xx",
+         keyword="did not shrink", mistake="the prior covariance returned at the end"),
+    Edit("conditional_covariance", _RET, "return cov, mean",
+         keyword="order", mistake="(cov, mean) returned"),
+
+    # --- linear_map_moments -------------------------------------------------------------
+    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T",
+         keyword="R is missing", mistake="R left out (the stub)"),
+    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + R @ R",
+         keyword="not R R", mistake="R R instead of R"),
+    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + np.sqrt(R)",
+         keyword="standard deviation", mistake="√R (element-wise) instead of R"),
+    Edit("linear_map_moments", _SYY,
+         "w, V = np.linalg.eigh(R)\n    Sigma_yy = G @ Sigma_xx @ G.T + (V * np.sqrt(w)) @ V.T",
+         keyword="standard deviation", mistake="the matrix square root of R instead of R"),
+    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + np.linalg.inv(R)",
+         keyword="R⁻¹", mistake="R⁻¹ instead of R"),
+    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T - R",
+         keyword="sign", mistake="R subtracted"),
+    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + np.diag(np.diag(R))",
+         keyword="diagonal of R", mistake="only the noise variances (diagonal of R) added"),
+    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + R ** 2",
+         keyword="do not square", mistake="R squared element-wise"),
+    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + np.eye(len(R))",
+         keyword="identity", mistake="unit noise assumed (R = I)"),
+    Edit("linear_map_moments", _SYY, "Sigma_yy = G.T @ Sigma_xx @ G + R",
+         keyword="transposed", mistake="Gᵀ Σ_xx G"),
+    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G + R",
+         keyword="transpose", mistake="the last G not transposed"),
+    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + G @ R @ G.T",
+         keyword="after the map", mistake="noise pushed through the map"),
+    Edit("linear_map_moments", _SYY, "Sigma_yy = Sigma_xx + R",
+         keyword="map G must appear", mistake="G left out of Σ_yy"),
+    Edit("linear_map_moments", _SXY, "Sigma_xy = G @ Sigma_xx",
+         keyword="Σ_yx", mistake="Σ_yx = G Σ_xx instead of Σ_xy (the stub)"),
+    Edit("linear_map_moments", _SXY, "Sigma_xy = Sigma_xx",
+         keyword="map G must appear", mistake="G left out of Σ_xy"),
+    Edit("linear_map_moments", _SXY, "Sigma_xy = G.T @ Sigma_xx",
+         keyword="comes first", mistake="Gᵀ Σ_xx"),
+    Edit("linear_map_moments", _SXY, "Sigma_xy = Sigma_xx @ G.T + R",
+         keyword="independent of x", mistake="R added to the cross-covariance"),
+    Edit("linear_map_moments", _SXY,
+         "Sigma_xy = Sigma_xx @ G.T @ np.linalg.inv(G @ Sigma_xx @ G.T + R)",
+         keyword="gain", mistake="the Kalman gain instead of the cross-covariance"),
+    Edit("linear_map_moments", _MUY, "mu_y = mu_x",
+         keyword="through the map", mistake="μ_y = μ_x"),
+    Edit("linear_map_moments", _MUY, "mu_y = mu_x @ G",
+         keyword="transposed", mistake="μ_x G, i.e. Gᵀ μ_x"),
+    Edit("linear_map_moments", _LRET, "return mu_y, Sigma_xy, Sigma_yy",
+         keyword="swapped", mistake="Σ_yy and Σ_xy returned in the wrong order"),
+]
+
+EQUIVALENTS = [
+    Edit("conditional_mean", _MEAN,
+         "mean = mu_x + Sigma_xy @ np.linalg.inv(Sigma_yy) @ (y - mu_y)",
+         mistake="an explicit inverse (the lecture's Σ_yy⁻¹)"),
+    Edit("conditional_mean", _MEAN,
+         "K = np.linalg.solve(Sigma_yy, Sigma_xy.T).T\n    mean = mu_x + K @ (y - mu_y)",
+         mistake="the gain form K = Σ_xy Σ_yy⁻¹ by a solve with Σ_yx"),
+    Edit("conditional_mean", _MEAN,
+         "L = np.linalg.cholesky(Sigma_yy)\n"
+         "    w = np.linalg.solve(L.T, np.linalg.solve(L, y - mu_y))\n"
+         "    mean = mu_x + Sigma_xy @ w",
+         mistake="two triangular solves with the Cholesky factor"),
+    Edit("conditional_mean", _MEAN,
+         "mean = mu_x + Sigma_xy @ np.linalg.lstsq(Sigma_yy, y - mu_y, rcond=None)[0]",
+         mistake="least squares"),
+    Edit("conditional_mean", _MEAN,
+         "n = len(mu_x)\n"
+         "    Lam = np.linalg.inv(np.block([[Sigma_xx, Sigma_xy], [Sigma_xy.T, Sigma_yy]]))\n"
+         "    mean = mu_x - np.linalg.solve(Lam[:n, :n], Lam[:n, n:] @ (y - mu_y))",
+         mistake="the precision form from the inverse of the joint covariance (lecture's Schur route)"),
+    Edit("conditional_mean", _MEAN,
+         "mean = mu_x + np.linalg.solve(Sigma_yy, y - mu_y) @ Sigma_xy.T",
+         mistake="row vector times Σ_xyᵀ (a 1-D vector on the left)"),
+    Edit("conditional_mean", _RET, "return [mean, 0.5 * (cov + cov.T)]",
+         mistake="a list instead of a tuple"),
+    Edit("conditional_mean", _MEAN,
+         "mean = mu_x + np.einsum('ij,j->i', Sigma_xy, np.linalg.solve(Sigma_yy, y - mu_y))",
+         mistake="einsum"),
+    Edit("conditional_covariance", _COV,
+         "cov = Sigma_xx - Sigma_xy @ np.linalg.inv(Sigma_yy) @ Sigma_xy.T",
+         mistake="an explicit inverse"),
+    Edit("conditional_covariance", _COV,
+         "K = np.linalg.solve(Sigma_yy, Sigma_xy.T).T\n    cov = Sigma_xx - K @ Sigma_yy @ K.T",
+         mistake="Σ_xx − K Σ_yy Kᵀ"),
+    Edit("conditional_covariance", _COV,
+         "K = np.linalg.solve(Sigma_yy, Sigma_xy.T).T\n"
+         "    cov = Sigma_xx - K @ Sigma_xy.T - Sigma_xy @ K.T + K @ Sigma_yy @ K.T",
+         mistake="the expanded (Joseph-like) form"),
+    Edit("conditional_covariance", _COV,
+         "L = np.linalg.cholesky(Sigma_yy)\n    W = np.linalg.solve(L, Sigma_xy.T)\n"
+         "    cov = Sigma_xx - W.T @ W",
+         mistake="Cholesky: Σ_xy L⁻ᵀ L⁻¹ Σ_yx as WᵀW"),
+    Edit("conditional_covariance", _COV,
+         "n = len(mu_x)\n"
+         "    cov = np.linalg.inv(np.linalg.inv(np.block([[Sigma_xx, Sigma_xy], "
+         "[Sigma_xy.T, Sigma_yy]]))[:n, :n])",
+         mistake="the precision form: the inverse of the xx block of the joint precision"),
+    Edit("conditional_covariance", _RET, "return [mean, cov]",
+         mistake="a list, without the final symmetrisation"),
+    Edit("linear_map_moments", _SXY, "Sigma_xy = (G @ Sigma_xx).T",
+         mistake="Σ_xy as (G Σ_xx)ᵀ"),
+    Edit("linear_map_moments", _SYY, "Sigma_yy = np.einsum('ij,jk,lk->il', G, Sigma_xx, G) + R",
+         mistake="einsum"),
+    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ (G @ Sigma_xx).T + R",
+         mistake="G (G Σ_xx)ᵀ + R"),
+    Edit("linear_map_moments", _LRET, "return [mu_y, Sigma_yy, Sigma_xy]",
+         mistake="a list instead of a tuple"),
+    Edit("linear_map_moments", _MUY, "mu_y = np.dot(G, mu_x)", mistake="np.dot"),
+]
+
+EQUIVALENT_MUTANTS = [
+    Equivalent("conditional_covariance", _RET, "return mean, cov",
+               reason="Σ_xx − Σ_xy Σ_yy⁻¹ Σ_xyᵀ is symmetric up to round-off (~1e-15 relative): "
+                      "symmetrising it, or not, changes nothing the check's tolerance sees"),
+    Equivalent("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + R.T",
+               reason="R is symmetric, so R.T is R"),
+    Equivalent("linear_map_moments", _SXY, "Sigma_xy = Sigma_xx.T @ G.T",
+               reason="Σ_xx is symmetric, so Σ_xxᵀ Gᵀ is Σ_xx Gᵀ"),
+]

@@ -1,0 +1,284 @@
+"""Chapter 07 (rotations and IMU mechanisation): plausible mistakes in the exercise's functions.
+
+The solution's cells (ids ``att``, ``vel``, ``pos``, ``run``) hold ``attitude_step``,
+``velocity_step``, ``position_step`` and ``mechanise``; an edit of one of the first three
+graded by ``mechanisation_run`` tests the dependency-aware hint.
+"""
+
+from mutation_harness import Edit, Equivalent
+
+NOTEBOOK = "07_imu_mechanisation"
+
+_ATT = "R_next = R @ so3.Exp(w_mean * dt)\n"
+_W = "w_mean = 0.5 * (w0 + w1) - b_w"
+_SPEC = "specific = 0.5 * (R0 @ (f0 - b_a) + R1 @ (f1 - b_a))"
+_VNEXT = "v_next = v + (specific + g) * dt"
+_PNEXT = "p_next = p + 0.5 * (v0 + v1) * dt"
+_DT = "dt = imu.t[k] - imu.t[k - 1]"
+_ATT_CALL = "R[i] = attitude_step(R[i - 1], imu.angular_rate[k - 1], imu.angular_rate[k], zero, dt)"
+_VEL_ARGS = "v[i - 1], R[i - 1], R[i], imu.specific_force[k - 1], imu.specific_force[k], zero, g, dt"
+_POS_CALL = "p[i] = position_step(p[i - 1], v[i - 1], v[i], dt)"
+
+_RODRIGUES = """phi = w_mean * dt
+    theta = np.linalg.norm(phi)
+    K = so3.hat(phi)
+    R_next = R @ (np.eye(3) + np.sin(theta) / theta * K + (1 - np.cos(theta)) / theta**2 * K @ K)
+"""
+
+_RODRIGUES_GUARDED = """phi = w_mean * dt
+    theta = np.linalg.norm(phi)
+    K = so3.hat(phi)
+    if theta < 1e-8:
+        R_next = R @ (np.eye(3) + K + 0.5 * K @ K)
+    else:
+        R_next = R @ (np.eye(3) + np.sin(theta) / theta * K + (1 - np.cos(theta)) / theta**2 * K @ K)
+"""
+
+MUTANTS = [
+    # --- attitude_step -------------------------------------------------------------------
+    Edit("attitude_step", _ATT, "R_next = so3.Exp(w_mean * dt) @ R\n", keyword="body frame",
+         mistake="Exp(ω̄T) R: the body-frame rotation multiplied on the left"),
+    Edit("attitude_step", _ATT, "R_next = R.T @ so3.Exp(w_mean * dt)\n", keyword="transpose",
+         mistake="Rᵀ Exp(ω̄T)"),
+    Edit("attitude_step", _ATT, "R_next = (R @ so3.Exp(w_mean * dt)).T\n", keyword="transpose",
+         mistake="the result transposed (R_bn instead of R_nb)"),
+    Edit("attitude_step", _ATT, "R_next = R @ so3.Exp(-w_mean * dt)\n", keyword="sign",
+         mistake="Exp(−ω̄T): the rotation turned backwards"),
+    Edit("attitude_step", _W, "w_mean = 0.5 * (w0 + w1)", keyword="bias",
+         mistake="gyro bias not subtracted"),
+    Edit("attitude_step", _W, "w_mean = 0.5 * (w0 + w1) + b_w", keyword="not added",
+         mistake="gyro bias added"),
+    Edit("attitude_step", _W, "w_mean = 0.5 * (w0 + w1 - b_w)", keyword="not halved",
+         mistake="gyro bias halved with the rates"),
+    Edit("attitude_step", _W, "w_mean = w0 - b_w", keyword="midpoint",
+         mistake="Euler: the rate at the start of the step"),
+    Edit("attitude_step", _W, "w_mean = w1 - b_w", keyword="midpoint",
+         mistake="the rate at the end of the step"),
+    Edit("attitude_step", _W, "w_mean = (w0 + w1) - b_w", keyword="half their sum",
+         mistake="sum of the rates instead of their mean (the ½ missing)"),
+    Edit("attitude_step", _ATT, "R_next = R @ so3.Exp(w_mean)\n", keyword="multiply by dt",
+         mistake="rate used as a rotation vector (dt missing)"),
+    Edit("attitude_step", _ATT, "R_next = R @ so3.Exp(w_mean * dt**2)\n", keyword="T²",
+         mistake="φ = ω̄ T² instead of ω̄ T"),
+    Edit("attitude_step", _ATT, "R_next = R @ so3.Exp(w_mean * dt / 2)\n", keyword="half of it",
+         mistake="half the rotation of the step"),
+    Edit("attitude_step", _ATT, "R_next = R @ so3.Exp(np.deg2rad(w_mean) * dt)\n", keyword="radians",
+         mistake="rates converted from degrees although they are in rad/s"),
+    Edit("attitude_step", _ATT, "R_next = R @ so3.Exp(np.rad2deg(w_mean) * dt)\n", keyword="radians",
+         mistake="rates converted to degrees"),
+    Edit("attitude_step", _ATT, "R_next = R @ (np.eye(3) + so3.hat(w_mean * dt))\n", keyword="first-order",
+         mistake="first-order I + [φ]× without renormalising"),
+    Edit("attitude_step", _ATT, "R_next = R @ so3.orthonormalise(np.eye(3) + so3.hat(w_mean * dt))\n",
+         keyword="first-order", mistake="first-order I + [φ]×, re-orthonormalised"),
+    Edit("attitude_step", _ATT,
+         "R_next = R @ so3.quat_to_matrix(np.concatenate([[1.0], 0.5 * w_mean * dt]))\n",
+         keyword="first-order", mistake="first-order quaternion (1, φ/2), normalised"),
+    Edit("attitude_step", _ATT, _RODRIGUES, keyword="divides 0 by 0",
+         mistake="own Rodrigues' formula without a small-angle branch (NaN at ω̄ = 0)"),
+    Edit("attitude_step", _ATT, _RODRIGUES_GUARDED.replace("/ theta**2 * K @ K)", "/ theta * K @ K)"),
+         keyword="rotation matrix", mistake="own Rodrigues' formula with (1 − cos θ)/θ instead of /θ²"),
+    Edit("attitude_step", _ATT, "R_next = R @ so3.Exp(w_mean) * dt\n", keyword="rotation matrix",
+         mistake="dt multiplied outside the exponential"),
+    Edit("attitude_step", _ATT, "R_next = R @ so3.Exp(0.5 * (w0 - b_w) * dt) @ so3.Exp(0.5 * (w1 - b_w) * dt)\n",
+         keyword="two half-steps", mistake="two half-step rotations instead of one of the mean rate"),
+    Edit("attitude_step", _W, "w_mean = np.mean([w0, w1]) - b_w", keyword="axis 0",
+         mistake="mean over all six numbers"),
+    Edit("attitude_step", _W, "w_mean = np.mean([w0, w1], axis=1) - b_w", keyword="axis 0",
+         mistake="mean over the wrong axis (shape (2,))"),
+    Edit("attitude_step", _ATT, "R_next = R\n", keyword="did not change",
+         mistake="the attitude not updated"),
+    Edit("attitude_step", _ATT, "R_next = so3.Exp(w_mean * dt)\n", keyword="previous attitude",
+         mistake="the previous attitude forgotten"),
+
+    # --- velocity_step -------------------------------------------------------------------
+    Edit("velocity_step", _VNEXT, "v_next = v + (specific - g) * dt", keyword="pointing down",
+         mistake="the lecture's − g with the course's g = (0, 0, −9.81)"),
+    Edit("velocity_step", _VNEXT, "v_next = v + specific * dt", keyword="gravity is missing",
+         mistake="gravity left out"),
+    Edit("velocity_step", _VNEXT, "v_next = v + (specific + 0.5 * g) * dt", keyword="gravity",
+         mistake="gravity halved with the readings"),
+    Edit("velocity_step", _SPEC, "specific = 0.5 * (R0 @ (f0 - b_a + g) + R1 @ (f1 - b_a + g))\n"
+         "    specific = specific - g", keyword="navigation-frame", mistake="gravity added in the body frame"),
+    Edit("velocity_step", _SPEC, "specific = 0.5 * (R0 @ f0 + R1 @ f1)", keyword="bias",
+         mistake="accelerometer bias not subtracted"),
+    Edit("velocity_step", _SPEC, "specific = 0.5 * (R0 @ (f0 + b_a) + R1 @ (f1 + b_a))", keyword="not added",
+         mistake="accelerometer bias added"),
+    Edit("velocity_step", _SPEC, "specific = 0.5 * (R0 @ f0 + R1 @ f1) - b_a", keyword="before rotating",
+         mistake="bias subtracted in the navigation frame"),
+    Edit("velocity_step", _SPEC, "specific = 0.5 * (R0 @ (f0 - b_a) + R0 @ (f1 - b_a))", keyword="new attitude",
+         mistake="the old attitude for the second acceleration"),
+    Edit("velocity_step", _SPEC, "specific = 0.5 * (R1 @ (f0 - b_a) + R1 @ (f1 - b_a))", keyword="old attitude",
+         mistake="the new attitude for the first acceleration"),
+    Edit("velocity_step", _SPEC, "specific = 0.5 * (R1 @ (f0 - b_a) + R0 @ (f1 - b_a))", keyword="swapped",
+         mistake="attitudes swapped between the two readings"),
+    Edit("velocity_step", _SPEC, "specific = 0.5 * ((f0 - b_a) + (f1 - b_a))", keyword="body frame",
+         mistake="readings not rotated (body frame used as navigation frame)"),
+    Edit("velocity_step", _SPEC, "specific = 0.5 * (R0.T @ (f0 - b_a) + R1.T @ (f1 - b_a))",
+         keyword="transpose", mistake="Rᵀ instead of R"),
+    Edit("velocity_step", _SPEC, "specific = R0 @ (f0 - b_a)", keyword="Euler",
+         mistake="Euler: the acceleration at the start of the step"),
+    Edit("velocity_step", _SPEC, "specific = R1 @ (f1 - b_a)", keyword="midpoint",
+         mistake="the acceleration at the end of the step"),
+    Edit("velocity_step", _SPEC, "specific = R0 @ (f0 - b_a) + R1 @ (f1 - b_a)", keyword="half the sum",
+         mistake="sum of the accelerations (the ½ missing)"),
+    Edit("velocity_step", _VNEXT, "v_next = v + specific * dt + g", keyword="g T",
+         mistake="gravity not multiplied by dt"),
+    Edit("velocity_step", _SPEC, "specific = 0.5 * (R0 @ (f0 - b_a) + R1 @ f1)", keyword="not from one only",
+         mistake="bias subtracted from the first reading only"),
+    Edit("velocity_step", _VNEXT, "v_next = v + (specific + np.array([0.0, 0.0, -9.81])) * dt",
+         keyword="hard-coded", mistake="gravity hard-coded instead of the g handed in"),
+    Edit("velocity_step", _SPEC, "specific = 0.5 * (R0 + R1) @ (0.5 * (f0 + f1) - b_a)", keyword="own time",
+         mistake="mean attitude times mean reading"),
+    Edit("velocity_step", _VNEXT, "v_next = v + (specific + g) * dt**2", keyword="T²",
+         mistake="T² instead of T"),
+    Edit("velocity_step", _VNEXT, "v_next = v + (specific + g)", keyword="multiply the acceleration",
+         mistake="dt missing"),
+    Edit("velocity_step", _VNEXT, "v_next = (specific + g) * dt", keyword="previous velocity",
+         mistake="the increment returned instead of the new velocity"),
+
+    # --- position_step -------------------------------------------------------------------
+    Edit("position_step", _PNEXT, "p_next = p + v1 * dt", keyword="not the new one",
+         mistake="the new velocity only"),
+    Edit("position_step", _PNEXT, "p_next = p + v0 * dt", keyword="Euler",
+         mistake="Euler: the old velocity only"),
+    Edit("position_step", _PNEXT, "p_next = p + (v0 + v1) * dt", keyword="½ is missing",
+         mistake="the ½ missing"),
+    Edit("position_step", _PNEXT, "p_next = p + 0.5 * (v0 + v1) * dt**2", keyword="T²",
+         mistake="T² instead of T"),
+    Edit("position_step", _PNEXT, "p_next = p + 0.5 * (v0 + v1)", keyword="multiply the mean velocity",
+         mistake="dt missing"),
+    Edit("position_step", _PNEXT, "p_next = p + v0 * dt + 0.5 * (v1 - v0) * dt**2", keyword="acceleration",
+         mistake="½ a T² with the velocity change in place of the acceleration"),
+    Edit("position_step", _PNEXT, "p_next = p + 0.5 * (v1 - v0) * dt", keyword="sign",
+         mistake="difference of the velocities instead of their sum"),
+    Edit("position_step", _PNEXT, "p_next = 0.5 * (v0 + v1) * dt", keyword="previous position",
+         mistake="the displacement returned instead of the new position"),
+    Edit("position_step", _PNEXT, "p_next = p + np.mean([v0, v1]) * dt", keyword="axis 0",
+         mistake="mean over all entries instead of over the two velocities"),
+    Edit("position_step", _PNEXT, "p_next = p + np.mean([v0, v1], axis=1) * dt", keyword="axis 0",
+         mistake="mean over the wrong axis (shape (2,))"),
+
+    # --- mechanisation_run ---------------------------------------------------------------
+    Edit("mechanisation_run", _DT, "dt = imu.t[1] - imu.t[0]", keyword="irregular",
+         mistake="one constant dt (the exercise's stub)"),
+    Edit("mechanisation_run", _DT, "dt = imu.t[start + 1] - imu.t[start]", keyword="irregular",
+         mistake="the slice's first interval for every step"),
+    Edit("mechanisation_run", _DT, "dt = imu.t[k + 1] - imu.t[k]", keyword="off by one",
+         mistake="dt of the next interval"),
+    Edit("mechanisation_run", _ATT_CALL,
+         "R[i] = attitude_step(R[i - 1], imu.angular_rate[k], imu.angular_rate[k + 1], zero, dt)",
+         keyword="off by one", mistake="rates one sample late"),
+    Edit("mechanisation_run", "imu.specific_force[k - 1], imu.specific_force[k], zero",
+         "imu.specific_force[k - 2], imu.specific_force[k - 1], zero", keyword="off by one",
+         mistake="specific forces one sample early"),
+    Edit("mechanisation_run", "k = start + i", "k = i", keyword="start + i",
+         mistake="the slice's start ignored"),
+    Edit("mechanisation_run", _VEL_ARGS, _VEL_ARGS.replace("R[i - 1], R[i]", "R[i - 1], R[i - 1]"),
+         keyword="old attitude twice", mistake="the old attitude handed to the velocity step twice"),
+    Edit("mechanisation_run", _VEL_ARGS, _VEL_ARGS.replace("R[i - 1], R[i]", "R[i], R[i]"),
+         keyword="new attitude twice", mistake="the new attitude handed to the velocity step twice"),
+    Edit("mechanisation_run", _VEL_ARGS, _VEL_ARGS.replace("R[i - 1], R[i]", "R[i], R[i - 1]"),
+         keyword="swapped", mistake="the attitudes handed to the velocity step in the wrong order"),
+    Edit("mechanisation_run", _ATT_CALL, _ATT_CALL.replace("imu.angular_rate[k]", "imu.angular_rate[k - 1]"),
+         keyword="one reading twice", mistake="the rate at k−1 twice (Euler)"),
+    Edit("mechanisation_run", "imu.specific_force[k - 1], imu.specific_force[k], zero",
+         "imu.specific_force[k], imu.specific_force[k], zero", keyword="one reading twice",
+         mistake="the specific force at k twice"),
+    Edit("mechanisation_run", _DT, "dt = imu.t[k] - imu.t[start]", keyword="time since the start",
+         mistake="dt measured from the start of the run"),
+    Edit("mechanisation_run", _ATT_CALL, _ATT_CALL.replace("attitude_step(R[i - 1]", "attitude_step(state.rotation"),
+         keyword="previous row", mistake="every attitude step from the initial attitude"),
+    Edit("mechanisation_run", _POS_CALL, "p[i] = position_step(p[i - 1], v[i - 1], v[i - 1], dt)",
+         keyword="old velocity twice", mistake="the old velocity handed to the position step twice"),
+    Edit("mechanisation_run", _ATT_CALL, "R[i] = R[i - 1]", keyword="never updated",
+         mistake="the attitude not propagated"),
+    Edit("mechanisation_run", "zero, g, dt)", "g, zero, dt)", keyword="swapped",
+         mistake="gravity and the accelerometer bias swapped in the call"),
+    Edit("mechanisation_run", "zero, g, dt)", "zero, zero, dt)", keyword="gravity is missing",
+         mistake="zero gravity handed to the velocity step"),
+    Edit("mechanisation_run", "for i in range(1, n):", "for i in range(1, n - 1):", keyword="last state",
+         mistake="the loop stops one step early"),
+    Edit("mechanisation_run", "for i in range(1, n):", "for i in range(n):", keyword="initial state",
+         mistake="the loop starts at 0 and overwrites the initial state"),
+    Edit("mechanisation_run", "p[0], v[0], R[0] = state.position, state.velocity, state.rotation",
+         "p[0], v[0], R[0] = state.velocity, state.position, state.rotation", keyword="initial state",
+         mistake="position and velocity swapped in the first row"),
+    Edit("mechanisation_run", "return p, v, R", "return p, R, v", keyword="in this order",
+         mistake="results returned in the wrong order"),
+    Edit("mechanisation_run", "return p, v, R", "return p, v, R.transpose(0, 2, 1)", keyword="transposed",
+         mistake="rotations returned transposed"),
+    # a correct mechanise with a wrong step function: the hint must blame the step
+    Edit("mechanisation_run", _ATT, "R_next = so3.Exp(w_mean * dt) @ R\n", cell="att",
+         keyword="fix attitude_step first", mistake="attitude_step multiplies on the left"),
+    Edit("mechanisation_run", _VNEXT, "v_next = v + (specific - g) * dt", cell="vel",
+         keyword="fix velocity_step first", mistake="velocity_step with the wrong gravity sign"),
+    Edit("mechanisation_run", _PNEXT, "p_next = p + v0 * dt", cell="pos",
+         keyword="fix position_step first", mistake="position_step with Euler's rule"),
+]
+
+EQUIVALENTS = [
+    # attitude_step: tolerance ATOL 1e-10 (imu.ATTITUDE_ATOL): every exact evaluation of Exp
+    # agrees to ~1e-15, while the closest mistake (a re-orthonormalised first-order form) errs
+    # by ~3e-6 on the "tumbling" case
+    Edit("attitude_step", _ATT, _RODRIGUES_GUARDED,
+         mistake="the lecture's Rodrigues' formula with a second-order series below 1e-8 rad"),
+    Edit("attitude_step", _ATT, "R_next = R @ so3.exp(w_mean * dt)\n", mistake="so3.exp instead of so3.Exp"),
+    Edit("attitude_step", _ATT, _RODRIGUES_GUARDED.replace("theta < 1e-8", "theta < 1e-4"),
+         mistake="Rodrigues with the second-order series below 1e-4 rad (error θ³/6 ≤ 2e-13)"),
+    Edit("attitude_step", _ATT, "q = so3.quat_multiply(so3.matrix_to_quat(R), so3.quat_exp(w_mean * dt))\n"
+         "    R_next = so3.quat_to_matrix(q)\n", mistake="the attitude kept as a quaternion, q ⊗ q{φ}"),
+    Edit("attitude_step", _ATT, "R_next = R @ so3.quat_to_matrix(so3.quat_exp(w_mean * dt))\n",
+         mistake="via a unit quaternion"),
+    Edit("attitude_step", _ATT, "from scipy.linalg import expm\n    R_next = R @ expm(so3.hat(w_mean * dt))\n",
+         mistake="matrix exponential of the skew matrix"),
+    Edit("attitude_step", _ATT, "from scipy.spatial.transform import Rotation\n"
+         "    R_next = R @ Rotation.from_rotvec(w_mean * dt).as_matrix()\n", mistake="scipy's Rotation"),
+    Edit("attitude_step", _ATT, "R_next = (so3.Exp(-w_mean * dt) @ R.T).T\n", mistake="(Exp(−φ) Rᵀ)ᵀ"),
+    Edit("attitude_step", _ATT, "R_next = (R @ so3.Exp(w_mean * dt)).tolist()\n", mistake="a nested list"),
+    Edit("attitude_step", _W, "w_mean = 0.5 * ((w0 - b_w) + (w1 - b_w))",
+         mistake="the lecture's mean of the bias-corrected rates"),
+    Edit("attitude_step", _W, "w_mean = (w0 + w1) / 2 - b_w", mistake="/ 2 instead of 0.5 *"),
+    # velocity_step: ATOL 1e-10 m/s (imu.VELOCITY_ATOL): any order of operations rounds to
+    # ~1e-14 m/s; every listed mistake changes v by ≥ 2e-3 m/s on some case
+    Edit("velocity_step", _SPEC, "specific = 0.5 * (R1 @ (f1 - b_a) + R0 @ (f0 - b_a))",
+         mistake="the lecture's order (R̃ₖāₖ + R̂ₖ₋₁āₖ₋₁)/2"),
+    Edit("velocity_step", _SPEC, "specific = 0.5 * (R0 @ f0 + R1 @ f1) - 0.5 * (R0 + R1) @ b_a",
+         mistake="bias term expanded"),
+    Edit("velocity_step", _SPEC, "specific = np.mean([R0 @ (f0 - b_a), R1 @ (f1 - b_a)], axis=0)",
+         mistake="np.mean over the two accelerations"),
+    Edit("velocity_step", _SPEC,
+         "specific = 0.5 * (np.einsum('ij,j->i', R0, f0 - b_a) + np.einsum('ij,j->i', R1, f1 - b_a))",
+         mistake="einsum"),
+    Edit("velocity_step", _VNEXT, "v_next = v + specific * dt + g * dt", mistake="g T as its own term"),
+    Edit("velocity_step", _VNEXT, "g_up = -g\n    v_next = v + (specific - g_up) * dt",
+         mistake="the lecture's − g with g pointing up"),
+    Edit("velocity_step", _VNEXT, "v_next = list(v + (specific + g) * dt)", mistake="a list"),
+    # position_step: ATOL 1e-9 m (imu.POSITION_ATOL): round-off ~1e-13 m; mistakes ≥ 0.2 m
+    Edit("position_step", _PNEXT, "p_next = p + v0 * dt + 0.5 * (v1 - v0) * dt",
+         mistake="p + v₀T + ½(v₁ − v₀)T"),
+    Edit("position_step", _PNEXT, "a = (v1 - v0) / dt\n    p_next = p + v0 * dt + 0.5 * a * dt**2",
+         mistake="p + v₀T + ½aT² with a = (v₁ − v₀)/T (the core's form)"),
+    Edit("position_step", _PNEXT, "p_next = p + (v0 + v1) * dt / 2", mistake="/ 2"),
+    Edit("position_step", _PNEXT, "p_next = p + np.mean([v0, v1], axis=0) * dt", mistake="np.mean axis 0"),
+    Edit("position_step", _PNEXT, "p_next = tuple(p + 0.5 * (v0 + v1) * dt)", mistake="a tuple"),
+    # mechanisation_run: ATOL 1e-6 m, 1e-8 m/s, 1e-10 (imu.RUN_ATOL): a loop and the vectorised
+    # reference round differently by ~1e-13 over 500 steps; every loop mistake is ≥ 4e-4 m
+    Edit("mechanisation_run", _DT, "dt = np.diff(imu.t[k - 1:k + 1])[0]", mistake="dt by np.diff"),
+    Edit("mechanisation_run", "for i in range(1, n):\n        k = start + i",
+         "for k in range(start + 1, stop):\n        i = k - start", mistake="loop over k instead of i"),
+    Edit("mechanisation_run", "return p, v, R", "return [p, v, R]", mistake="a list of the three arrays"),
+    Edit("mechanisation_run", _ATT_CALL,
+         "R[i] = R[i - 1] @ so3.Exp((0.5 * (imu.angular_rate[k - 1] + imu.angular_rate[k])) * dt)",
+         mistake="the attitude step written inline"),
+]
+
+EQUIVALENT_MUTANTS = [
+    Equivalent("attitude_step", _W, "w_mean = 0.5 * (w1 + w0) - b_w",
+               reason="floating-point addition commutes exactly: the two rates in either order"),
+    Equivalent("velocity_step", _VNEXT, "v_next = v + (g + specific) * dt",
+               reason="floating-point addition commutes exactly"),
+    Equivalent("position_step", _PNEXT, "p_next = p + 0.5 * (v1 + v0) * dt",
+               reason="floating-point addition commutes exactly: the two velocities in either order"),
+    Equivalent("mechanisation_run", _POS_CALL, "p[i] = position_step(p[i - 1], v[i], v[i - 1], dt)",
+               reason="position_step is symmetric in v0 and v1 (it uses their sum)"),
+]
