@@ -21,7 +21,9 @@ MISTAKE_CATALOGUE = "a grader's catalogue of wrong formulas (each names a learne
 
 # formula -> (regex over code, home module, {other module: why it may write it})
 FORMULAS = {
-    "angle wrapping": (r"np\.mod\(|%\s*\(2(\.0)?\s*\*\s*(np\.|math\.)pi\)", "core/angles.py", {}),
+    "angle wrapping": (r"np\.mod\(|%\(2(\.0)?\*(np\.|math\.)pi\)", "core/angles.py", {
+        "checks/ekf.py": MISTAKE_CATALOGUE,
+    }),
     "RMSE": (r"sqrt\((np\.)?mean\(|sqrt\(mean_square\)", "evaluation/metrics.py", {}),
     "symmetrisation": (r"0\.5\*\((\w+)\+\1\.T\)|\((\w+)\+\2\.T\)/2|add\((\w+),\3\.T", "core/linalg.py", {
         "checks/eskf.py": MISTAKE_CATALOGUE,
@@ -30,10 +32,12 @@ FORMULAS = {
         "symbolic/kalman.py": "the SymPy derivation that the numeric kernel is tested against",
         "checks/kf.py": MISTAKE_CATALOGUE,
         "checks/eskf.py": MISTAKE_CATALOGUE,
+        "checks/ekf.py": MISTAKE_CATALOGUE,
         "chapters/consistency.py": "lecture 09's short form (I - K G) P, unsymmetrised on purpose",
     }),
     "Kalman gain by solve or inverse of S": (r"(solve|inv)\(S\b", "core/linalg.py", {
         "core/gaussians.py": "block_inverse: S is the Schur complement there, not an innovation covariance",
+        "checks/ekf.py": MISTAKE_CATALOGUE,
     }),
     "SO(3) exponential coefficients": (r"sin\(\w+\)/\w+|1(\.0)?-(np|math)\.cos\(", "core/so3.py", {}),
     # the mean of the navigation-frame accelerations at both ends of a step

@@ -1,14 +1,24 @@
 """Checks for chapter 09: NEES, NIS, chi-square bounds, the innovation gate and a verdict.
 
-Every case comes from the reference ESKF on the KITTI ``cruise`` excerpt: pose errors and
-covariances of the shipped run, priors at held-out lidar poses, innovations of the run
-with seeded map-matching failures, and NIS records of three noise settings.
+Every case comes from the reference ESKF on the KITTI ``cruise`` excerpt: pose and
+navigation-state errors and covariances of the shipped run, priors at held-out lidar
+poses, innovations of the run with seeded map-matching failures, and NIS records of three
+noise settings. Some cases re-express those quantities in mixed coordinates (a seeded,
+non-symmetric, non-orthogonal matrix A: e → A e, P → A P Aᵀ), which leaves every correct
+NEES/NIS unchanged but makes covariances strongly correlated and observation matrices
+square, so that a dropped correlation or a misplaced transpose changes the value instead
+of only the shape.
+
+A learner's function is run on every case before anything is judged, and a known mistake
+is named only when it reproduces the learner's results on all cases (a wrong formula
+may agree with the right one on a single case), so each hint names the mistake made.
 """
 
 from __future__ import annotations
 
 import functools
 import math
+from typing import Callable
 
 import numpy as np
 
@@ -17,7 +27,7 @@ from kalman_course.filters import eskf
 from kalman_course.evaluation import metrics
 from kalman_course.evaluation import consistency as consistency_stats
 from kalman_course.evaluation.pose import POSE_INDEX, evaluate
-from kalman_course.checks.harness import CheckFailed, call, check, expect_close
+from kalman_course.checks.harness import CheckFailed, call, check
 from kalman_course.data import load_kitti
 from kalman_course.filters.eskf_config import load_config
 
@@ -25,30 +35,76 @@ from kalman_course.filters.eskf_config import load_config
 EXCERPT = "cruise"
 OUTLIER_SEED = 0
 VERDICT_SETTINGS = (("reference", 1.0, 1.0), ("R / 4", 1.0, 0.25), ("R x 4", 1.0, 4.0))
+#: Seed of the mixing matrices of the re-expressed cases.
+MIXING_SEED = 9
+
+#: Relative tolerance of the NEES, NIS and interval checks. Every correct way of writing them
+#: (solve, inv, pinv, Cholesky, einsum, scipy's χ² quantiles) agrees to ~1e-12 relative on
+#: these cases; every wrong formula in the catalogues is off by at least 2 % on some case (the
+#: closest: the Wilson–Hilferty approximation of the interval, 2.5 %; dropping the
+#: correlations of S, 22 %), so 1e-6 separates the two by orders of magnitude.
+RTOL = 1e-6
+
+
+# --------------------------------------------------------------------------------------
+# cases
+# --------------------------------------------------------------------------------------
+
+def _mixing(n: int, seed: int) -> np.ndarray:
+    """A seeded, well-conditioned, non-symmetric and non-orthogonal n × n matrix."""
+    rng = np.random.default_rng([MIXING_SEED, n, seed])
+    A = np.eye(n) + 0.6 * rng.standard_normal((n, n))
+    while np.linalg.cond(A) > 30:           # keep the re-expressed cases well conditioned
+        A = np.eye(n) + 0.6 * rng.standard_normal((n, n))
+    return A
+
+
+@functools.lru_cache(maxsize=None)
+def _reference_run():
+    ex = load_kitti(EXCERPT)
+    k0, s0 = ex.initial_state()
+    res = eskf.run(ex.imu, s0, load_config("kitti_lidar"), ex.gravity, lidar=ex.lidar, start=k0)
+    return ex, res
 
 
 @functools.lru_cache(maxsize=None)
 def nees_cases():
-    """(error, P) pairs: 6-dof pose errors of the reference run and 3-dof position errors."""
-    ex = load_kitti(EXCERPT)
-    k0, s0 = ex.initial_state()
-    res = eskf.run(ex.imu, s0, load_config("kitti_lidar"), ex.gravity, lidar=ex.lidar, start=k0)
+    """(label, error, P) triples of the reference run at three times.
+
+    Per time: the 6-dof pose error, the 3-dof position error, the 6-dof position-velocity
+    error (position and velocity errors correlate at ~0.7 in P, so dropping the
+    off-diagonal of P changes the NEES by tens of percent), and the pose error in mixed
+    coordinates; once, the 1-dof heading error.
+    """
+    ex, res = _reference_run()
     m = evaluate(res.t, res.position, res.rotation, ex.truth, res.P)
     e6 = np.concatenate([m["position_error"], m["attitude_error"]], axis=1)
+    dv = res.velocity - ex.truth.interpolate(res.t).velocity
+    pv = np.r_[0:6]
     cases = []
-    for k in np.linspace(5, len(res.t) - 1, 5).astype(int):
+    for j, k in enumerate(np.linspace(5, len(res.t) - 1, 3).astype(int)):
         P6 = res.P[k][np.ix_(POSE_INDEX, POSE_INDEX)]
-        cases.append((e6[k], P6))
-        cases.append((e6[k, :3], P6[:3, :3]))
+        cases.append((f"the 6-dof pose error at step {k}", e6[k], P6))
+        cases.append((f"the 3-dof position error at step {k}", e6[k, :3], P6[:3, :3]))
+        cases.append((f"the 6-dof position-velocity error at step {k}",
+                      np.concatenate([m["position_error"][k], dv[k]]), res.P[k][np.ix_(pv, pv)]))
+        A = _mixing(6, j)
+        cases.append((f"the 6-dof pose error at step {k} in mixed coordinates", A @ e6[k], A @ P6 @ A.T))
+        if j == 0:   # one 1-dof case: no correlations, so even element-wise functions of P are finite
+            cases.append((f"the 1-dof heading error at step {k}", e6[k, 5:], P6[5:, 5:]))
     return tuple(cases)
 
 
 @functools.lru_cache(maxsize=None)
 def prior_cases():
-    """(innovation, P_check (15, 15), G (6, 15), R (6, 6)) at held-out lidar poses.
+    """(label, innovation, P_check, G, R) at held-out lidar poses.
 
     The filter uses every other pose; at the poses in between, its row is a prior (no
     update there), so the pose residual against the held-out pose is a true innovation.
+    The first cases observe the 6-dof pose block of the prior through a square,
+    non-symmetric G with a non-diagonal R (the residual in mixed coordinates), where
+    G P̌ Gᵀ, Gᵀ P̌ G and G P̌ G all have the same shape but different values; the rest are the
+    KITTI lidar update itself: G (6, 15) and R = diag(σ²) with σ = 0.2 m and 0.3°.
     """
     ex = load_kitti(EXCERPT)
     k0, s0 = ex.initial_state()
@@ -58,160 +114,637 @@ def prior_cases():
     held = np.arange(1, len(lid.t), 2)
     res = eskf.run(ex.imu, s0, cfg, ex.gravity, lidar=used, start=k0, output_times=lid.t[held])
     R = np.diag(cfg.lidar_std ** 2)
-    cases = []
-    for j in held[np.linspace(3, len(held) - 2, 6).astype(int)]:
+    G = np.array(eskf.POSE_G)
+    kitti, square = [], []
+    for n, j in enumerate(held[np.linspace(3, len(held) - 2, 6).astype(int)]):
         r = int(np.searchsorted(res.t, lid.t[j] - 1e-9))
         y = eskf.pose_residual(res.position[r], res.rotation[r], lid.position[j], lid.rotation[j])
-        cases.append((y, res.P[r], np.array(eskf.POSE_G), R))
-    return tuple(cases)
+        kitti.append((f"the KITTI lidar innovation at t = {lid.t[j]:.1f} s (G 6×15)", y, res.P[r], G, R))
+        if n < 3:
+            A = _mixing(6, 10 + n)
+            P6 = res.P[r][np.ix_(POSE_INDEX, POSE_INDEX)]
+            # ν' = A ν = A (G' δx) with δx the pose error: G' = A (square), R' = A R Aᵀ
+            square.append((f"the lidar innovation at t = {lid.t[j]:.1f} s in mixed coordinates "
+                           "(square, non-symmetric G 6×6)", A @ y, P6, A, A @ R @ A.T))
+    return tuple(square + kitti)
+
+
+def _rescaled(y, S, target):
+    """The innovation y scaled so that its NIS with S is ``target``."""
+    return y * math.sqrt(target / metrics.nis(y, S))
 
 
 @functools.lru_cache(maxsize=None)
 def gate_cases():
-    """(innovation, S, accepted by the reference) for the outlier run and borderline cases."""
+    """(innovation, S, confidence) for the outlier run, borderline and mixed cases.
+
+    The outlier run's innovations at 99 %; innovations rescaled to lie just inside and just
+    outside the 99 % gate, between the 95 % and the 99 % quantile (tested at 95 % too, so a
+    confidence that is not taken from the argument shows), above the 99 % but below the
+    99.5 % quantile, in the lower tail (below the 0.5 % quantile, which a two-sided
+    test would reject), and at NIS 0.93 (below the confidence as a number, above the 1 %
+    quantile); and outlier-run innovations in mixed coordinates, where S is
+    strongly correlated (the NIS, hence the right decision, is unchanged).
+    """
     ex = load_kitti(EXCERPT)
     bad, _ = consistency.inject_outliers(ex.lidar, OUTLIER_SEED)
     run = consistency.run_gated(ex, bad)
-    cases = [(run.innovation[i], run.S[i]) for i in range(len(run.t))]
-    # borderline: rescale some innovations to NIS just inside / outside the 99 % gate, 6 and 3 dof
-    for i, factor in zip(range(10, 60, 10), (0.97, 1.03, 0.9, 1.1, 0.99)):
+    q = metrics.chi2_ppf
+    cases = [(run.innovation[i], run.S[i], 0.99) for i in range(len(run.t))]
+    # (index, NIS as a multiple of a quantile (p), confidences to test it at)
+    border = ((10, 0.97, 0.99, (0.99,)), (20, 1.03, 0.99, (0.99, 0.999)), (30, 0.9, 0.99, (0.99, 0.95)),
+              (40, 1.1, 0.99, (0.99,)), (50, 0.99, 0.99, (0.99, 0.95)), (60, 0.5, 0.005, (0.99, 0.95)),
+              (70, 0.97, 0.95, (0.95, 0.99)), (80, 1.02, 0.995, (0.99,)), (90, 0.93, None, (0.99,)),
+              (100, 27.0, None, (0.99,)))
+    for i, factor, p, confidences in border:
         for dims in (slice(0, 6), slice(0, 3)):
             y, S = run.innovation[i][dims], run.S[i][dims, dims]
-            target = factor * consistency_stats.gate_threshold(len(y), 0.99)
-            cases.append((y * math.sqrt(target / metrics.nis(y, S)), S))
+            # p None: the NIS is `factor` itself (0.93: above the 1 % quantile, below 0.99;
+            # 27: above q(0.99; 9) = 21.7, below m · q(0.99; m) for m = 3)
+            y = _rescaled(y, S, factor * (1.0 if p is None else q(p, len(y))))
+            cases.extend((y, S, c) for c in confidences)
+    # NIS between consecutive 99 % quantiles, q(0.99; k) < NIS < q(0.99; k + 1) for k = 1 … 19:
+    # any threshold with a wrong number of degrees of freedom shows which number it used
+    for k in range(1, 20):
+        for dims in (slice(0, 6), slice(0, 3)):
+            y, S = run.innovation[110 + k][dims], run.S[110 + k][dims, dims]
+            cases.append((_rescaled(y, S, 0.5 * (q(0.99, k) + q(0.99, k + 1))), S, 0.99))
+    for n, i in enumerate(range(5, len(run.t), 12)):
+        A = _mixing(6, 20 + n)
+        y, S = A @ run.innovation[i], A @ run.S[i] @ A.T
+        cases.append((y, S, 0.99))
+        if n < 8:        # and near the gate, where a NIS off by tens of percent flips decisions
+            for factor in (0.5, 0.8, 1.25, 2.0):
+                cases.append((_rescaled(y, S, factor * q(0.99, 6)), S, 0.99))
     return tuple(cases)
 
 
 @functools.lru_cache(maxsize=None)
 def verdict_cases():
-    """(label, NIS record (N,)) of the reference ESKF on the excerpt for each verdict setting."""
+    """(label, NIS record (N,), dof, confidence) of the reference ESKF on the excerpt.
+
+    The 6-dof pose NIS and the 3-dof position NIS of each verdict setting at 95 %, and
+    records rescaled to means that separate the ways of misplacing N, dof and the
+    confidence (see the comments).
+    """
     ex = load_kitti(EXCERPT)
     k0, s0 = ex.initial_state()
     out = []
     for label, qf, rf in VERDICT_SETTINGS:
         res = eskf.run(ex.imu, s0, consistency.scaled_config("kitti_lidar", qf, rf), ex.gravity,
                        lidar=ex.lidar, start=k0)
-        out.append((label, metrics.nis(np.array(res.innovation), np.array(res.S))))
+        nu, S = np.array(res.innovation), np.array(res.S)
+        out.append((f"the KITTI run with {label}", metrics.nis(nu, S), 6, 0.95))
+        out.append((f"the KITTI run with {label}, position only", metrics.nis(nu[:, :3], S[:, :3, :3]), 3, 0.95))
+    reference = out[0][1]
+    N = len(reference)
+    bounds = metrics.chi2_bounds
+    # means between the 95 % and the 99.9 % bounds, judged at 99.9 % (the confidence argument:
+    # at 95 % they are outside), and between the 90 % and the 95 % bounds (two tails of
+    # (1 − c)/2, not 1 − c)
+    for side, name in ((1, "above"), (0, "below")):
+        target = 0.5 * (bounds(6, N, 0.95)[side] + bounds(6, N, 0.999)[side])
+        out.append((f"a KITTI record rescaled to a mean just {name} its 95 % interval",
+                    reference * (target / reference.mean()), 6, 0.999))
+        target = 0.5 * (bounds(6, N, 0.95)[side] + bounds(6, N, 0.9)[side])
+        out.append((f"a KITTI record rescaled to a mean just {name} the middle of its 95 % interval",
+                    reference * (target / reference.mean()), 6, 0.95))
+    # ten values rescaled to means that separate the misplaced N's: 5.93 (inside the 95 %
+    # interval, but below dof and outside the 5 % interval), 45 (inside the interval of the
+    # SUM, F⁻¹(·; 60), but not of the mean's sum, F⁻¹(·; 600)/10)
+    short = reference[:10]
+    for mean in (5.93, 45.0):
+        out.append((f"ten KITTI values rescaled to a mean of {mean}", short * (mean / short.mean()), 6, 0.95))
+    # ... and to a mean between the upper 95 % bounds of 10 and of 9 values (N, not N − 1)
+    mean = 0.5 * (bounds(6, 10, 0.95)[1] + bounds(6, 9, 0.95)[1])
+    out.append((f"ten KITTI values rescaled to a mean of {mean:.3f}", short * (mean / short.mean()), 6, 0.95))
     return tuple(out)
 
 
-def _scalar(value, what: str) -> float:
-    arr = np.asarray(value, dtype=float) if not isinstance(value, (str, bytes)) else None
+# --------------------------------------------------------------------------------------
+# judging
+# --------------------------------------------------------------------------------------
+
+class _Failure(str):
+    """A learner's call that gave no usable result (raised, wrong shape, NaN), as its message."""
+
+
+def _scalar(value, what: str, v: str = "e", W: str = "P") -> float:
+    """The learner's result as one float; a vector or matrix fails with a hint (``v``ᵀ ``W``⁻¹ ``v``)."""
+    try:
+        arr = None if isinstance(value, (str, bytes)) else np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        arr = None
     if arr is None or arr.size != 1:
-        shape = "a string" if arr is None else f"shape {arr.shape}"
-        raise CheckFailed(f"{what} should be one number, got {shape}. Hint: eᵀ P⁻¹ e is a scalar; "
-                          "did you return P⁻¹ e (a vector) or forget a product?")
+        if arr is not None and arr.ndim == 2 and arr.shape[0] == arr.shape[1]:
+            raise CheckFailed(f"{what} should be one number, got a matrix of shape {arr.shape}. "
+                              f"Hint: an outer product {v} ({W}⁻¹ {v})ᵀ: a transpose on the wrong side; "
+                              f"{v}ᵀ {W}⁻¹ {v} is a scalar")
+        shape = f"a {type(value).__name__}" if arr is None else f"shape {arr.shape}"
+        raise CheckFailed(f"{what} should be one number, got {shape}. Hint: {v}ᵀ {W}⁻¹ {v} is a scalar; "
+                          f"did you return {W}⁻¹ {v} (a vector) or forget a product?")
     return float(arr.reshape(()))
 
 
+def _outcome(fn: Callable, args: tuple, convert: Callable):
+    """The learner's converted, finite result on ``args``, or a :class:`_Failure`."""
+    try:
+        value = convert(call(fn, *args))
+    except CheckFailed as exc:
+        return _Failure(str(exc))
+    if not np.all(np.isfinite(value)):
+        return _Failure(f"{getattr(fn, '__name__', 'your function')} returned NaN or inf")
+    return value
+
+
+def _evaluate(formula: Callable, case):
+    """A (wrong or right) formula on a case, or None where it raises or is not finite."""
+    try:
+        with np.errstate(all="ignore"):
+            value = np.asarray(formula(*case), dtype=float)
+    except Exception:  # a mistake may not even have the right shapes on every case
+        return None
+    return value if np.all(np.isfinite(value)) else None
+
+
+def _close(outcome, value) -> bool:
+    if isinstance(outcome, _Failure) or value is None:
+        return False
+    outcome = np.asarray(outcome, dtype=float)
+    return outcome.shape == value.shape and bool(np.allclose(outcome, value, rtol=RTOL, atol=1e-12))
+
+
+def _explains(outcomes, wrong, correct) -> bool:
+    """True if the wrong values reproduce the learner's on every case, and differ somewhere.
+
+    A case where the wrong formula cannot be evaluated counts as reproduced when the
+    learner's call failed there too (a misplaced transpose raises on non-square G).
+    """
+    if not any(w is not None and _close(o, w) and not ok for o, w, ok in zip(outcomes, wrong, correct)):
+        return False
+    return all(_close(o, w) if w is not None else isinstance(o, _Failure)
+               for o, w in zip(outcomes, wrong))
+
+
+def _judge(outcomes, cases, labels, reference, mistakes, hint: str) -> None:
+    """Fail with the hint of the known mistake that explains the learner's results.
+
+    Parameters
+    ----------
+    outcomes : list
+        The learner's result per case (:func:`_outcome`).
+    cases : sequence of tuple
+        The arguments of each case, as the formulas take them.
+    labels : sequence of str
+        What each case is, for the message.
+    reference : callable
+        The correct formula.
+    mistakes : sequence of (callable, str)
+        Known wrong formulas and the hint that names each.
+    hint : str
+        The hint when no known mistake explains the results.
+    """
+    expected = [_evaluate(reference, c) for c in cases]
+    correct = [_close(o, e) for o, e in zip(outcomes, expected)]
+    if all(correct):
+        return
+    i = correct.index(False)
+    where = f"for {labels[i]}"
+    summary = f"{where} ({correct.count(False)} of {len(cases)} cases wrong)"
+    wrong_by = [(why, [_evaluate(f, c) for c in cases]) for f, why in mistakes]
+    for why, wrong in wrong_by:
+        if _explains(outcomes, wrong, correct):
+            raise CheckFailed(f"wrong result {summary}. Hint: {why}")
+    for why, wrong in wrong_by:                    # agrees with a mistake on this case only
+        if _close(outcomes[i], wrong[i]):
+            raise CheckFailed(f"wrong result {summary}. Hint: {why}")
+    if isinstance(outcomes[i], _Failure):
+        own_hint = "Hint:" in outcomes[i]
+        raise CheckFailed(f"{summary}: {outcomes[i]}" + ("" if own_hint else f" Hint: {hint}"))
+    err = float(np.max(np.abs(np.asarray(outcomes[i]) - expected[i])))
+    raise CheckFailed(f"result differs from the reference {summary} (max abs error {err:.3g}). "
+                      f"Hint: {hint}")
+
+
+def _diag_weighted(v, M):
+    return float(np.sum(v ** 2 / np.diag(M)))
+
+
+def _chol_wrong_side(v, M):
+    z = np.linalg.solve(np.linalg.cholesky(M).T, v)
+    return float(z @ z)
+
+
+def _weight_mistakes(quantity: str, W: str, n: str, chi2: str):
+    """Mistakes in vᵀ W⁻¹ v shared by the NEES and the NIS, as functions of (v, M)."""
+    return [
+        (lambda v, M: float(v @ M @ v),
+         f"that is {quantity}ᵀ {W} {quantity}: weight by the INVERSE covariance, {quantity}ᵀ {W}⁻¹ {quantity}"),
+        (lambda v, M: float(v @ v), f"the vector must be weighted by {W}⁻¹: {quantity}ᵀ {W}⁻¹ {quantity}, "
+                                    f"not {quantity}ᵀ {quantity}"),
+        (lambda v, M: float(v @ (1 / M) @ v),
+         f"1 / {W} inverts each entry; the {chi2} needs the matrix inverse: {quantity}ᵀ {W}⁻¹ "
+         f"{quantity} (np.linalg.solve({W}, {quantity}))"),
+        (lambda v, M: float(v @ np.linalg.solve(M, v)) / len(v),
+         f"do not divide by the dimension: the {chi2} is χ²({n}) with mean {n}"),
+        (lambda v, M: math.sqrt(v @ np.linalg.solve(M, v)),
+         f"that is the Mahalanobis distance; the {chi2} is its square"),
+        (lambda v, M: float(v @ np.linalg.solve(M, v)) ** 2,
+         f"squared twice: {quantity}ᵀ {W}⁻¹ {quantity} is already the squared (Mahalanobis) length"),
+        (lambda v, M: float(v @ np.linalg.solve(M, v)) / 2,
+         f"no ½: the Gaussian's exponent is −½ {quantity}ᵀ {W}⁻¹ {quantity}, the {chi2} is "
+         f"{quantity}ᵀ {W}⁻¹ {quantity} itself"),
+        (_diag_weighted, f"only the diagonal of {W} (each component divided by its variance): the "
+                         f"correlations are ignored; use the full {W}⁻¹"),
+        (lambda v, M: float(np.sum(v ** 2 / np.sqrt(np.diag(M)))),
+         f"each component divided by its standard deviation, squared once, and the correlations "
+         f"dropped; use the full {W}⁻¹: {quantity}ᵀ {W}⁻¹ {quantity}"),
+        (lambda v, M: float(np.sum(v ** 2 / np.diag(M) ** 2)),
+         f"each component divided by its variance, then squared: that divides by the variance "
+         f"twice (standard deviation vs variance), and drops the correlations; use {W}⁻¹"),
+        (lambda v, M: float(np.linalg.solve(M, v) @ np.linalg.solve(M, v)),
+         f"{W}⁻¹ applied twice ({quantity}ᵀ {W}⁻² {quantity}): dot {W}⁻¹ {quantity} with {quantity} itself"),
+        (lambda v, M: float(np.sum(np.linalg.solve(M, v))),
+         f"that is the sum of the entries of {W}⁻¹ {quantity}; the {chi2} is its dot product with "
+         f"{quantity}: {quantity}ᵀ ({W}⁻¹ {quantity})"),
+        (_chol_wrong_side, f"Cholesky on the wrong side: with {W} = L Lᵀ, whiten by z = L⁻¹ {quantity} "
+                           f"(solve(L, {quantity})), not L⁻ᵀ {quantity}; then zᵀ z"),
+        (lambda v, M: float(v @ np.linalg.solve(np.linalg.cholesky(M), v)),
+         f"{quantity}ᵀ L⁻¹ {quantity} whitens one side only: with {W} = L Lᵀ, z = L⁻¹ {quantity} "
+         f"and the {chi2} is zᵀ z"),
+        (lambda v, M: float(v @ np.linalg.solve(np.sqrt(M), v)),
+         f"√{W} element-wise: {W} holds variances and covariances, and the {chi2} weights by {W}⁻¹ "
+         f"itself (not by standard deviations)"),
+    ]
+
+
+# --------------------------------------------------------------------------------------
+# checks
+# --------------------------------------------------------------------------------------
+
 @check
 def check_consistency_nees(nees):
-    """The learner's ``nees(error, P)`` on KITTI pose and position errors."""
-    for e, P in nees_cases():
-        n = len(e)
-        value = _scalar(call(nees, e, P), f"nees for a {n}-dof error")
-        ref = float(e @ np.linalg.solve(P, e))
-        expect_close(value, ref, f"NEES of a {n}-dof KITTI error", rtol=1e-6, mistakes=[
-            (float(e @ P @ e), "that is eᵀ P e: the NEES weights the error by the INVERSE covariance, eᵀ P⁻¹ e"),
-            (float(e @ e), "the error must be weighted by P⁻¹: eᵀ P⁻¹ e, not eᵀ e"),
-            (ref / n, "do not divide by the dimension: the NEES is χ²(n) with mean n"),
-            (math.sqrt(ref), "that is the Mahalanobis distance; the NEES is its square"),
-        ], hint="ε = eᵀ P⁻¹ e (np.linalg.solve(P, e) avoids forming the inverse)")
+    """The learner's ``nees(error, P)`` on KITTI pose, position and navigation errors."""
+    labels, cases = zip(*[(label, (e, P)) for label, e, P in nees_cases()])
+    outcomes = [_outcome(nees, c, lambda v, n=len(c[0]): _scalar(v, f"nees for a {n}-dof error"))
+                for c in cases]
+    _judge(outcomes, cases, labels, lambda e, P: float(e @ np.linalg.solve(P, e)),
+           _weight_mistakes("e", "P", "n", "NEES"),
+           "ε = eᵀ P⁻¹ e (np.linalg.solve(P, e) avoids forming the inverse)")
 
 
-@check
+def _S(P, G, R):
+    return G @ P @ G.T + R
+
+
+def _nis_mistakes():
+    """Wrong NIS formulas as functions of (ν, P̌, G, R)."""
+    nis = metrics.nis
+
+    def with_S(build):
+        return lambda y, P, G, R: float(y @ np.linalg.solve(build(P, G, R), y))
+
+    out = [
+        (with_S(lambda P, G, R: G @ P @ G.T), "S = G P̌ Gᵀ + R: the innovation also carries the "
+                                              "observation noise R, which is missing"),
+        (with_S(lambda P, G, R: R), "S = G P̌ Gᵀ + R: the prior's uncertainty G P̌ Gᵀ is missing"),
+        (with_S(lambda P, G, R: P), "that weights ν by P̌⁻¹, the state's prior covariance; the "
+                                    "innovation's covariance is S = G P̌ Gᵀ + R"),
+        (with_S(lambda P, G, R: P + R), "P̌ + R: the prior must be mapped into the measurement "
+                                        "space: S = G P̌ Gᵀ + R"),
+        (with_S(lambda P, G, R: G.T @ P @ G + R), "Gᵀ P̌ G: the transpose is on the wrong side; "
+                                                  "S = G P̌ Gᵀ + R"),
+        (with_S(lambda P, G, R: G @ P @ G + R), "G P̌ G: the transpose of the second G is missing; "
+                                                "S = G P̌ Gᵀ + R"),
+        (with_S(lambda P, G, R: G @ G.T @ P + R), "G Gᵀ P̌: the order of the products; S = G P̌ Gᵀ + R"),
+        (with_S(lambda P, G, R: G @ P @ G.T + np.sqrt(R)),
+         "√R where R belongs: R holds variances (σ²), not standard deviations; S = G P̌ Gᵀ + R"),
+        (with_S(lambda P, G, R: G @ P @ G.T + R @ R),
+         "R R (or R²): R already holds variances (σ²); S = G P̌ Gᵀ + R"),
+        (with_S(lambda P, G, R: G @ P @ G.T + R ** 2),
+         "R squared element-wise: R already holds variances (σ²); S = G P̌ Gᵀ + R"),
+        (with_S(lambda P, G, R: G @ P @ G.T + np.diag(R)),
+         "np.diag(R) is a vector, which numpy adds to every row; add the matrix R: S = G P̌ Gᵀ + R"),
+        (with_S(lambda P, G, R: G @ P @ G.T + np.linalg.inv(R)),
+         "R⁻¹ added where R belongs: S = G P̌ Gᵀ + R (the inverse is taken of S as a whole)"),
+        (with_S(lambda P, G, R: G @ P @ G.T - R),
+         "wrong sign: the observation noise adds to the innovation's covariance, S = G P̌ Gᵀ + R"),
+        (with_S(lambda P, G, R: G @ np.linalg.inv(P) @ G.T + R),
+         "P̌⁻¹ inside S: S = G P̌ Gᵀ + R uses the covariance itself"),
+        (lambda y, P, G, R: float(y @ (np.linalg.inv(G @ P @ G.T) + np.linalg.inv(R)) @ y),
+         "(G P̌ Gᵀ)⁻¹ + R⁻¹ is not S⁻¹: add the covariances first, S = G P̌ Gᵀ + R, then invert S"),
+    ]
+    for f, why in _weight_mistakes("ν", "S", "m", "NIS"):
+        out.append((lambda y, P, G, R, f=f: f(y, _S(P, G, R)), why))
+    return out
+
+
+@check(uses={"nees": "consistency_nees"})
 def check_consistency_nis(nis):
     """The learner's ``nis(innovation, P_check, G, R)`` at held-out KITTI lidar poses."""
-    for y, P, G, R in prior_cases():
-        value = _scalar(call(nis, y, P, G, R), "nis")
-        S = G @ P @ G.T + R
-        ref = float(metrics.nis(y, S))
-        GPG = G @ P @ G.T
-        expect_close(value, ref, "NIS of a KITTI lidar innovation", rtol=1e-6, mistakes=[
-            (float(y @ np.linalg.solve(GPG, y)), "S = G P̌ Gᵀ + R: the innovation also carries the "
-                                                 "observation noise R, which is missing"),
-            (float(y @ np.linalg.solve(R, y)), "S = G P̌ Gᵀ + R: the prior's uncertainty G P̌ Gᵀ is missing"),
-            (float(y @ S @ y), "weight by S⁻¹, not S: νᵀ S⁻¹ ν"),
-            (ref / len(y), "do not divide by the dimension: the NIS is χ²(m) with mean m"),
-        ], hint="ν̃ = νᵀ S⁻¹ ν with S = G P̌ Gᵀ + R")
+    labels, cases = zip(*[(label, (y, P, G, R)) for label, y, P, G, R in prior_cases()])
+    outcomes = [_outcome(nis, c, lambda v: _scalar(v, "nis", "ν", "S")) for c in cases]
+    _judge(outcomes, cases, labels, lambda y, P, G, R: float(metrics.nis(y, _S(P, G, R))),
+           _nis_mistakes(),
+           "ν̃ = νᵀ S⁻¹ ν with S = G P̌ Gᵀ + R, an m × m matrix (m = len(ν); P̌ is n × n, G is m × n)")
+
+
+def _interval(value):
+    """A learner's (lo, hi): any sequence of two numbers (tuple, list or array)."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        arr = None
+    if arr is None or arr.shape != (2,):
+        shape = type(value).__name__ if arr is None else f"shape {arr.shape}"
+        raise CheckFailed(f"chi2_interval must return two numbers (lo, hi), got {shape}")
+    return arr
+
+
+def _interval_mistakes():
+    """Wrong intervals as functions of (dof, n_runs, confidence)."""
+    q = metrics.chi2_ppf
+
+    def two(p_lo, p_hi, k, scale):
+        return lambda d, n, c: [q(p_lo(c), k(d, n)) / scale(d, n), q(p_hi(c), k(d, n)) / scale(d, n)]
+
+    lo_p, hi_p = (lambda c: (1 - c) / 2), (lambda c: (1 + c) / 2)
+    dn, per_n = (lambda d, n: d * n), (lambda d, n: n)
+    one = lambda d, n: 1  # noqa: E731
+    z = {0.9: 1.6448536269514722, 0.95: 1.959963984540054, 0.99: 2.5758293035489004}
+    return [
+        (two(lambda c: 0.0, lambda c: c, dn, per_n),
+         "that is a one-sided interval [0, q_c]; a two-sided interval leaves (1 − c)/2 in each "
+         "tail: lo at (1 − c)/2, hi at (1 + c)/2"),
+        (two(lambda c: 1 - c, lambda c: c, dn, per_n),
+         "the tails are (1 − c)/2 each, not 1 − c: lo at (1 − c)/2, hi at (1 + c)/2"),
+        (two(lambda c: c / 2, lambda c: 1 - c / 2, dn, per_n),
+         "confidence c is the mass INSIDE the interval, not the tail mass α: the tails hold "
+         "α = 1 − c, lo at (1 − c)/2, hi at (1 + c)/2"),
+        (lambda d, n, c: [q((1 - c) / 2, d * n) / n, q(c, d * n) / n],
+         "lo is right, but hi is the c quantile: the upper tail also holds (1 − c)/2, so hi is at (1 + c)/2"),
+        (lambda d, n, c: [q(1 - c, d * n) / n, q((1 + c) / 2, d * n) / n],
+         "hi is right, but lo is the (1 − c) quantile: the lower tail also holds (1 − c)/2, so lo is at (1 − c)/2"),
+        (two(hi_p, lo_p, dn, per_n), "lo and hi are swapped: lo is the (1 − c)/2 quantile, hi the (1 + c)/2 one"),
+        (two(lo_p, hi_p, lambda d, n: d, one),
+         "n_runs is ignored: the SUM of n_runs values is χ²(dof · n_runs); divide its quantiles "
+         "by n_runs for the mean"),
+        (two(lo_p, hi_p, dn, one),
+         "these are bounds for the sum of the n_runs values; divide by n_runs for the mean"),
+        (two(lo_p, hi_p, lambda d, n: n, per_n),
+         "degrees of freedom: the sum has dof · n_runs of them, not n_runs"),
+        (two(lo_p, hi_p, lambda d, n: d, per_n),
+         "the quantiles of χ²(dof) divided by n_runs: the sum of n_runs values has dof · n_runs "
+         "degrees of freedom; take the quantiles of χ²(dof · n_runs), then divide by n_runs"),
+        (two(lo_p, hi_p, lambda d, n: d + n, per_n),
+         "degrees of freedom: the sum has dof · n_runs of them (a product), not dof + n_runs"),
+        (two(lo_p, hi_p, dn, lambda d, n: 1 / n),
+         "multiplied by n_runs: the mean is the sum divided by n_runs; divide the quantiles"),
+        (two(lo_p, hi_p, dn, lambda d, n: d * n),
+         "divided by dof · n_runs: the mean of the NEES/NIS values is the sum divided by n_runs "
+         "only (its mean is dof, not 1)"),
+        (two(lo_p, hi_p, dn, lambda d, n: math.sqrt(n)),
+         "divided by √n_runs: the mean is the sum divided by n_runs, not by √n_runs"),
+        (two(lo_p, hi_p, lambda d, n: d * n - 1, per_n),
+         "degrees of freedom off by one: the sum of n_runs χ²(dof) values has exactly dof · n_runs "
+         "(no − 1: nothing is estimated from the data)"),
+        (two(lo_p, hi_p, lambda d, n: d * (n - 1), per_n),
+         "degrees of freedom off by one: the sum of n_runs χ²(dof) values has exactly dof · n_runs, "
+         "not dof · (n_runs − 1)"),
+        (two(lo_p, hi_p, lambda d, n: d * n * n, per_n),
+         "degrees of freedom: the sum has dof · n_runs of them, counted once"),
+        (lambda d, n, c: [d - z[c] * math.sqrt(2 * d / n), d + z[c] * math.sqrt(2 * d / n)],
+         "that is the normal approximation d ± z √(2 d / n_runs), close for large dof · n_runs but "
+         "not exact; use the χ² quantiles"),
+        (lambda d, n, c: [d * n * (1 - 2 / (9 * d * n) - z[c] * math.sqrt(2 / (9 * d * n))) ** 3 / n,
+                          d * n * (1 - 2 / (9 * d * n) + z[c] * math.sqrt(2 / (9 * d * n))) ** 3 / n],
+         "that is the Wilson–Hilferty approximation; close, but not exact; use the χ² quantiles"),
+    ]
 
 
 @check
 def check_chi2_interval(chi2_interval):
     """The learner's ``chi2_interval(dof, n_runs, confidence)`` for KITTI-sized records."""
     n_updates = len(load_kitti(EXCERPT).lidar.t) - 1          # one NIS per lidar pose after the first
-    for dof, n_runs, confidence in ((6, 1, 0.95), (6, n_updates, 0.95), (15, 20, 0.95), (3, 50, 0.99),
-                                    (6, 20, 0.99)):
-        result = call(chi2_interval, dof, n_runs, confidence)
-        if not isinstance(result, tuple) or len(result) != 2:
-            raise CheckFailed("chi2_interval must return a tuple (lo, hi)")
-        lo, hi = metrics.chi2_bounds(dof, n_runs, confidence)
-        a, c = (1 - confidence) / 2, (1 + confidence) / 2
-        ppf = metrics.chi2_ppf
-        what = f"(lo, hi) for dof={dof}, n_runs={n_runs}, confidence={confidence}"
-        expect_close(np.array(result, dtype=float), [lo, hi], what, rtol=1e-6, mistakes=[
-            ([0.0, ppf(confidence, dof * n_runs) / n_runs],
-             "that is a one-sided interval [0, q_c]; a two-sided interval leaves (1 − c)/2 "
-             "in each tail: lo at (1 − c)/2, hi at (1 + c)/2"),
-            ([ppf(1 - confidence, dof * n_runs) / n_runs, ppf(confidence, dof * n_runs) / n_runs],
-             "the tails are (1 − c)/2 each, not 1 − c: lo at (1 − c)/2, hi at (1 + c)/2"),
-            ([ppf(a, dof), ppf(c, dof)], "n_runs is ignored: the SUM of n_runs values is "
-                                         "χ²(dof · n_runs); divide its quantiles by n_runs for the mean"),
-            ([ppf(a, dof * n_runs), ppf(c, dof * n_runs)],
-             "these are bounds for the sum of the n_runs values; divide by n_runs for the mean"),
-            ([ppf(a, n_runs) / n_runs, ppf(c, n_runs) / n_runs],
-             "degrees of freedom: the sum has dof · n_runs of them, not n_runs"),
-        ], hint="lo, hi = F⁻¹((1 ∓ c)/2; dof · n_runs) / n_runs")
+    # confidences 0.9, 0.95, 0.99 (never 0.5, where c and 1 − c coincide); n_runs 1 and
+    # several, dof ≠ n_runs, so that each misplaced factor changes the interval
+    cases = ((6, 1, 0.95), (6, n_updates, 0.95), (15, 20, 0.95), (3, 50, 0.99), (6, 20, 0.99),
+             (2, 7, 0.9), (9, 3, 0.9))
+    labels = [f"dof={d}, n_runs={n}, confidence={c}" for d, n, c in cases]
+    outcomes = [_outcome(chi2_interval, c, _interval) for c in cases]
+    _judge(outcomes, cases, labels, lambda d, n, c: metrics.chi2_bounds(d, n, c), _interval_mistakes(),
+           "lo, hi = F⁻¹((1 ∓ c)/2; dof · n_runs) / n_runs")
 
 
-@check
+def _gate_mistakes():
+    """Wrong gate decisions as functions of (NIS, m, confidence, ν, S), with their hints."""
+    q = metrics.chi2_ppf
+    out = [
+        (lambda v, m, c, y, S: v >= q(c, m), "The comparison is reversed: accept when the NIS is at "
+                                              "most the threshold."),
+        (lambda v, m, c, y, S: v <= q(c, 1),
+         "The threshold is the χ² quantile for ONE degree of freedom; use the innovation's dimension."),
+        (lambda v, m, c, y, S: v <= q(c, m * m),
+         "The threshold has m² degrees of freedom (S.size?); an innovation of m components has m: "
+         "len(innovation)."),
+        (lambda v, m, c, y, S: v <= q(1 - c, m),
+         "That threshold is the (1 − confidence) quantile (1 % for 99 %); the gate uses the "
+         "`confidence` quantile."),
+        (lambda v, m, c, y, S: v <= c, "Compare the NIS with the χ² quantile F⁻¹(confidence; m), not "
+                                       "with the confidence."),
+        (lambda v, m, c, y, S: q((1 - c) / 2, m) <= v <= q((1 + c) / 2, m),
+         "That is the two-sided interval; the gate is one-sided: only a large NIS is rejected, "
+         "at F⁻¹(confidence; m)."),
+        (lambda v, m, c, y, S: v <= q((1 + c) / 2, m),
+         "The threshold is the (1 + c)/2 quantile, the upper end of a two-sided interval; the gate "
+         "is one-sided: F⁻¹(confidence; m)."),
+        (lambda v, m, c, y, S: v <= q(0.99, m), "The 99 % is written into the function: use the "
+                                                "`confidence` argument."),
+        (lambda v, m, c, y, S: v <= q(0.95, m), "A fixed 95 % is written into the function: use the "
+                                                "`confidence` argument."),
+        (lambda v, m, c, y, S: math.sqrt(v) <= q(c, m),
+         "The square root of the NIS (the Mahalanobis distance) is compared with a χ² quantile, "
+         "or (the same decisions) the NIS with the square of the χ² quantile; the quantile is "
+         "already a squared length: compare νᵀ S⁻¹ ν itself with F⁻¹(confidence; m)."),
+        (lambda v, m, c, y, S: v <= math.sqrt(q(c, m)),
+         "The NIS is compared with the square root of the χ² quantile (√); the quantile is "
+         "already on the NIS's (squared) scale."),
+        (lambda v, m, c, y, S: v / m <= q(c, m),
+         "The NIS is divided by the dimension; compare νᵀ S⁻¹ ν itself with F⁻¹(confidence; m)."),
+        (lambda v, m, c, y, S: v <= q(c, m) / m,
+         "The threshold is divided by the dimension; compare νᵀ S⁻¹ ν with F⁻¹(confidence; m) itself."),
+        (lambda v, m, c, y, S: float(y @ S @ y) <= q(c, m),
+         "The NIS must weight ν by S⁻¹ (the inverse), not S: νᵀ S⁻¹ ν."),
+        (lambda v, m, c, y, S: float(y @ y) <= q(c, m),
+         "ν must be weighted by S⁻¹: νᵀ S⁻¹ ν, not νᵀ ν."),
+        (lambda v, m, c, y, S: _diag_weighted(y, S) <= q(c, m),
+         "Only the diagonal of S is used (the correlations are dropped); use the full S⁻¹: νᵀ S⁻¹ ν."),
+    ]
+    for shift in (-1, 1):
+        out.append((lambda v, m, c, y, S, shift=shift: v <= q(c, m + shift),
+                    f"The degrees of freedom are off by one (m {'−' if shift < 0 else '+'} 1); an "
+                    "innovation of m components has exactly m = len(innovation)."))
+    for k in (2, 3, 4, 5, 6, 9, 12, 15):
+        out.append((lambda v, m, c, y, S, k=k: v <= q(c, k),
+                    f"Every innovation is gated with {k} degrees of freedom; use the innovation's "
+                    "dimension m = len(innovation)."))
+    return out
+
+
+@functools.lru_cache(maxsize=None)
+def _gate_reference():
+    """NIS, dimension, confidence and threshold of each of :func:`gate_cases` (computed once)."""
+    cases = gate_cases()
+    values = np.array([metrics.nis(y, S) for y, S, _ in cases])
+    dims = np.array([len(y) for y, _, _ in cases])
+    conf = np.array([c for _, _, c in cases])
+    threshold = np.array([metrics.chi2_ppf(c, m) for c, m in zip(conf, dims)])
+    for a in (values, dims, conf, threshold):
+        a.setflags(write=False)          # cached: shared by every call of the check
+    return values, dims, conf, threshold
+
+
+@check(uses={"nees": "consistency_nees"})
 def check_innovation_gate(gate):
     """The learner's ``gate(innovation, S, confidence)`` on the KITTI outlier run."""
     cases = gate_cases()
-    values = np.array([metrics.nis(y, S) for y, S in cases])
-    dims = np.array([len(y) for y, _ in cases])
+    values, dims, conf, threshold = _gate_reference()
     answers = []
-    for y, S in cases:
-        answer = call(gate, y, S, 0.99)
+    for y, S, c in cases:
+        answer = call(gate, y, S, c)
         if not isinstance(answer, (bool, np.bool_)):
             raise CheckFailed(f"gate must return True or False, got {type(answer).__name__}")
         answers.append(bool(answer))
     answers = np.array(answers)
-    threshold = np.array([metrics.chi2_ppf(0.99, m) for m in dims])
     wrong = np.nonzero(answers != (values <= threshold))[0]
     if wrong.size == 0:
         return
     i = wrong[0]
-    hint = (f"an innovation of {dims[i]} components with NIS {values[i]:.2f} (99 % gate "
+    hint = (f"an innovation of {dims[i]} components with NIS {values[i]:.2f} ({conf[i]:.1%} gate "
             f"{threshold[i]:.2f}) was {'accepted' if answers[i] else 'rejected'}; {wrong.size} of "
             f"{len(cases)} decisions are wrong. ")
-    known = (
-        (values <= metrics.chi2_ppf(0.99, 1),
-         "The threshold is the χ² quantile for ONE degree of freedom; use the innovation's dimension."),
-        (values >= threshold, "The comparison is reversed: accept when the NIS is at most the threshold."),
-        (values <= np.array([metrics.chi2_ppf(0.01, m) for m in dims]),
-         "That threshold is the 1 % quantile; the gate uses the `confidence` quantile (99 %)."),
-        (values <= 0.99, "Compare the NIS with the χ² quantile F⁻¹(confidence; m), not with the confidence."),
-    )
-    for decisions, why in known:
+    for decide, why in _gate_mistakes():
+        decisions = np.array([bool(decide(v, m, c, y, S)) for v, m, c, (y, S, _) in zip(values, dims, conf, cases)])
         if np.array_equal(decisions, answers):
             hint += why
             break
     else:
-        hint += "Accept when νᵀ S⁻¹ ν ≤ F⁻¹(confidence; m), m = len(innovation)."
+        hint += _gate_dof_hint(values, dims, conf, answers)
     raise CheckFailed("wrong gate decisions. Hint: " + hint)
 
 
-@check
+def _gate_dof_hint(values, dims, conf, answers) -> str:
+    """Name the degrees of freedom a learner's threshold uses, if a χ² quantile explains it.
+
+    For each innovation dimension m, the decisions on its cases are compared with
+    NIS ≤ F⁻¹(confidence; k) for k = 1 … 40; the cases between consecutive quantiles make k
+    unique when it is at most 20.
+    """
+    found = {}
+    for m in sorted(set(dims.tolist())):
+        mine = dims == m
+        for k in range(1, 41):
+            threshold = np.array([metrics.chi2_ppf(c, k) for c in conf[mine]])
+            if np.array_equal(values[mine] <= threshold, answers[mine]):
+                found[m] = k
+                break
+        else:
+            return "Accept when νᵀ S⁻¹ ν ≤ F⁻¹(confidence; m), m = len(innovation)."
+    used = ", ".join(f"{k} for {m}-component innovations" for m, k in found.items())
+    return (f"The threshold is a χ² quantile with the wrong degrees of freedom ({used}); an "
+            "innovation of m components has m = len(innovation).")
+
+
+@functools.lru_cache(maxsize=None)
+def _expected_verdicts() -> list:
+    """The reference verdict of each of :func:`verdict_cases` (computed once)."""
+    return [consistency_stats.verdict(values, dof, c) for _, values, dof, c in verdict_cases()]
+
+
+def _verdict_by(bounds, statistic=np.mean, labels=("overconfident", "underconfident")):
+    """A verdict rule from a bounds function (dof, N, c) -> (lo, hi) and the statistic compared
+    (None: the mean divided by dof)."""
+    def rule(values, dof, c):
+        lo, hi = bounds(dof, len(values), c)
+        s = np.mean(values) / dof if statistic is None else statistic(values)
+        return labels[0] if s > hi else labels[1] if s < lo else "consistent"
+    return rule
+
+
+def _verdict_mistakes():
+    """Wrong verdict rules as functions of (values, dof, confidence), with their hints."""
+    b, q = metrics.chi2_bounds, metrics.chi2_ppf
+    return [
+        (_verdict_by(b, labels=("underconfident", "overconfident")),
+         "overconfident and underconfident are swapped: a mean above the interval means the errors "
+         "are larger than S says, so the filter is OVERconfident (S too small); below it, underconfident."),
+        (_verdict_by(lambda d, n, c: b(d, 1, c)),
+         "that is the interval of ONE value (χ²(dof)); the mean of N values has the much narrower "
+         "interval F⁻¹((1 ∓ c)/2; N · dof) / N."),
+        (_verdict_by(lambda d, n, c: b(d * n, 1, c)),
+         "the mean is compared with the bounds of the SUM of the N values (χ²(N · dof)); divide "
+         "them by N for the mean."),
+        # the same decisions: sum vs (lo, hi) is mean vs (lo/N, hi/N)
+        (_verdict_by(b, statistic=np.sum),
+         "either the SUM of the values is compared with the bounds of the mean, or the mean's "
+         "bounds are divided by N once more (the same decisions): chi2_bounds(dof, N) already is "
+         "the interval of the mean; compare the mean with it."),
+        (_verdict_by(lambda d, n, c: b(d * n, n, c)),
+         "degrees of freedom counted twice: the mean of N values of dof components has the "
+         "interval chi2_bounds(dof, N), not chi2_bounds(dof · N, N)."),
+        (_verdict_by(lambda d, n, c: b(d, n - 1, c)),
+         "N − 1 values: the mean of N values has the interval chi2_bounds(dof, N) (off by one; "
+         "nothing is estimated from the record)."),
+        (_verdict_by(lambda d, n, c: b(n, d, c)),
+         "the arguments dof and N are swapped: chi2_bounds(dof, N, confidence)."),
+        (_verdict_by(lambda d, n, c: b(d, n, c), statistic=None),
+         "the mean is divided by dof (a normalised NIS) but the bounds are not: compare the mean "
+         "itself with chi2_bounds(dof, N)."),
+        (_verdict_by(lambda d, n, c: tuple(x / d for x in b(d, n, c))),
+         "the bounds are divided by dof but the mean is not: compare the mean with "
+         "chi2_bounds(dof, N) itself."),
+        (_verdict_by(lambda d, n, c: b(d, n, 1 - c)),
+         "the interval's confidence is 1 − c (the tail mass α); it must hold c inside."),
+        (_verdict_by(lambda d, n, c: (q(1 - c, d * n) / n, q(c, d * n) / n)),
+         "the tails are (1 − c)/2 each, not 1 − c."),
+        (_verdict_by(lambda d, n, c: (0.0, q(c, d * n) / n)),
+         "a one-sided bound cannot say underconfident: use the two-sided interval."),
+        (_verdict_by(lambda d, n, c: (b(d, n, c)[1],) * 2),
+         "only the upper bound is used: below it the mean must still be compared with the lower "
+         "bound; between the two the filter is consistent."),
+        (_verdict_by(lambda d, n, c: (d, d)),
+         "compare the mean with the two-sided interval, not with dof itself: inside the interval "
+         "the filter is consistent."),
+        (_verdict_by(lambda d, n, c: b(d, n, 0.95)), "the 95 % is written into the function: use the "
+                                                     "`confidence` argument."),
+        (_verdict_by(lambda d, n, c: b(6, n, c)), "dof 6 is written into the function: use the `dof` argument."),
+        # the same decisions as using the lower bound alone (above lo: over, below: under)
+        (_verdict_by(lambda d, n, c: b(d, n, c)[::-1]),
+         "lo and hi are swapped (or only the lower bound is used, the same decisions): above hi "
+         "is overconfident, below lo underconfident, in between consistent."),
+    ]
+
+
+@check(uses=("chi2_interval",))
 def check_consistency_verdict(verdict):
-    """The learner's ``verdict(nis_values, dof, confidence)`` on NIS records of three KITTI runs."""
-    for label, values in verdict_cases():
-        answer = call(verdict, values, 6, 0.95)
-        ref = consistency_stats.verdict(values, 6, 0.95)
-        if answer != ref:
-            lo, hi = metrics.chi2_bounds(6, len(values), 0.95)
-            raise CheckFailed(
-                f"for the KITTI run with {label} the mean NIS is {np.mean(values):.3f} and its 95 % "
-                f"interval [{lo:.3f}, {hi:.3f}]: expected {ref!r}, got {answer!r}. Hint: a mean above "
-                "the interval means the errors are larger than S says, so the filter is "
-                "OVERconfident (S too small); below it, underconfident")
+    """The learner's ``verdict(nis_values, dof, confidence)`` on NIS records of KITTI runs."""
+    cases = verdict_cases()
+    answers = [call(verdict, values, dof, c) for _, values, dof, c in cases]
+    for answer in answers:
+        if not isinstance(answer, str) or answer not in consistency_stats.VERDICTS:
+            raise CheckFailed(f"verdict returned {answer!r}; it must return one of the strings "
+                              f"{', '.join(map(repr, consistency_stats.VERDICTS))}")
+    expected = _expected_verdicts()  # a cached list: not to be modified
+    if answers == list(expected):
+        return
+    i = next(k for k, (a, e) in enumerate(zip(answers, expected)) if a != e)
+    label, values, dof, c = cases[i]
+    lo, hi = metrics.chi2_bounds(dof, len(values), c)
+    message = (f"for {label} ({dof}-dof NIS, N = {len(values)}) the mean NIS is {np.mean(values):.3f} "
+               f"and its {c:.1%} interval [{lo:.3f}, {hi:.3f}]: expected {expected[i]!r}, got "
+               f"{answers[i]!r}.")
+    for rule, why in _verdict_mistakes():
+        if [rule(values, dof, c) for _, values, dof, c in cases] == answers:
+            raise CheckFailed(f"{message} Hint: {why}")
+    raise CheckFailed(f"{message} Hint: a mean above the interval means the errors are larger than S "
+                      "says, so the filter is OVERconfident (S too small); below it, underconfident")

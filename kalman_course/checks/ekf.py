@@ -28,7 +28,7 @@ import numpy as np
 from kalman_course import symbolic
 from kalman_course.chapters import beacons
 from kalman_course.core.angles import wrap_angle
-from kalman_course.core.linalg import gain, innovation_covariance, short_update
+from kalman_course.core.linalg import gain, innovation_covariance, short_update, symmetrise
 from kalman_course.filters import ekf
 from kalman_course.checks.harness import CheckFailed, call, check, expect_shape, expect_symmetric
 from kalman_course.chapters.motion import kitti_model_states
@@ -492,7 +492,7 @@ def _with_symmetrised(mistakes):
         wrong = np.asarray(wrong, dtype=float)
         out.append((wrong, why))
         if wrong.ndim == 2 and wrong.shape[0] == wrong.shape[1]:
-            out.append((0.5 * (wrong + wrong.T), why))
+            out.append((symmetrise(wrong), why))
     return out
 
 

@@ -15,6 +15,7 @@ import contextlib
 import copy
 import functools
 import io
+import types
 import warnings
 from typing import Callable, Iterable
 
@@ -81,7 +82,7 @@ def check(fn: Callable | None = None, *, uses: tuple[str, ...] | dict[str, str] 
         try:
             fn(*args, **kwargs)
         except CheckFailed as exc:
-            upstream = _failing_dependency(uses, args)
+            upstream = _upstream_of(uses, args[0]) if args else None
             if upstream is not None:
                 raise CheckFailed(f"{name}: {upstream}") from None
             raise CheckFailed(f"{name}: {exc}") from None
@@ -93,14 +94,38 @@ def check(fn: Callable | None = None, *, uses: tuple[str, ...] | dict[str, str] 
     return run
 
 
-def _failing_dependency(uses: dict[str, str], args: tuple) -> str | None:
+def _global_names(code: types.CodeType) -> set[str]:
+    """Global names a function's code refers to, including its comprehensions and lambdas."""
+    names = set(code.co_names)
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType):
+            names |= _global_names(const)
+    return names
+
+
+def _upstream_of(uses: dict[str, str], learner_fn) -> str | None:
+    """:func:`upstream_failure` for the used functions that ``learner_fn``'s code refers to
+    (a learner's ``nis`` that does not call ``nees`` is not blamed on a ``nees`` stub)."""
+    code = getattr(learner_fn, "__code__", None)
+    if not isinstance(code, types.CodeType):
+        return None
+    refers = _global_names(code)
+    return upstream_failure({name: check_name for name, check_name in uses.items() if name in refers},
+                            getattr(learner_fn, "__globals__", None))
+
+
+def upstream_failure(uses: dict[str, str], namespace) -> str | None:
     """The message for the first used learner function that fails its own check, or None.
 
-    The learner's functions are looked up in the namespace of the function under test
-    (its ``__globals__``: the notebook's namespace), so the check sees exactly the
-    ``kf_gain`` that the learner's ``kf_update`` calls.
+    Parameters
+    ----------
+    uses : dict of str to str
+        Learner function name -> the name of the check that grades it.
+    namespace : dict or None
+        Where the learner's functions live: the ``__globals__`` of the function under test
+        (the notebook's namespace), so the check sees exactly the ``kf_gain`` that the
+        learner's ``kf_update`` calls. Anything but a dict means there is nothing to ask.
     """
-    namespace = getattr(args[0], "__globals__", None) if args else None
     if not uses or not isinstance(namespace, dict):
         return None
     for dependency, check_name in uses.items():

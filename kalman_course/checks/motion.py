@@ -16,6 +16,7 @@ import functools
 import numpy as np
 
 from kalman_course import symbolic
+from kalman_course.core.angles import wrap_angle
 from kalman_course.checks.harness import CheckFailed, as_array, call, check, expect_close, expect_shape
 from kalman_course.chapters.motion import kitti_model_states
 
@@ -265,7 +266,7 @@ def check_ctrv_step(ctrv_step):
         got = _finite_or_limit(_call_near_zero(ctrv_step, x, T), (5,), x, T, what)
         # a heading wrapped into (−π, π] is the same heading: compare ψ modulo 2π (only when it
         # is a whole number of turns off, so that other wrong values still match their mistakes)
-        unwrapped = expected[3] + (got[3] - expected[3] + np.pi) % (2 * np.pi) - np.pi
+        unwrapped = expected[3] + wrap_angle(got[3] - expected[3])
         if abs(unwrapped - expected[3]) < 1e-9 and unwrapped != got[3]:
             got = got.copy()
             got[3] = unwrapped
