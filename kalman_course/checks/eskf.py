@@ -44,7 +44,7 @@ from kalman_course.filters.eskf import NominalState
 from kalman_course.filters.eskf_config import load_config
 
 #: The whole-run check: excerpt and length of the slice (s).
-RUN_EXCERPT, RUN_SECONDS = "turns", 10.0
+RUN_EXCERPT, RUN_SECONDS = "turns", 5.0
 DENSITY = np.array([0.03, 1e-3, 1.67e-4, 2.91e-6])
 
 #: Rows / columns of the error state and of the noise vector: (name, start, stop).
