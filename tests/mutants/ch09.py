@@ -247,6 +247,10 @@ MUTANTS = [
              "lo and hi swapped in the comparisons"),
     _verdict('        return "overconfident"\n', '        return "over-confident"\n', "one of the strings",
              "misspelled verdict"),
+    _verdict('    if mean < lo:\n', '    if mean < 0.9 * lo:\n', "below the lower bound",
+             "a margin on the lower bound (mean < 0.9 lo)"),
+    _verdict('    if mean > hi:\n', '    if mean > 1.05 * hi:\n', "above the upper bound",
+             "a margin on the upper bound (mean > 1.05 hi)"),
     _verdict(VERDICT_TAIL, VERDICT_TAIL.replace(BOUNDS, VIA_INTERVAL) + "\n\n\n" + BROKEN_INTERVAL,
              "fix chi2_interval first", "verdict through the learner's own chi2_interval, which is wrong (dependency)"),
 ]
