@@ -20,7 +20,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+from worktree import ROOT, checked_out
 
 # Runs in a child process with the tree to measure as its first argument.
 CHILD = r"""
@@ -84,17 +84,11 @@ def main(argv: list[str] | None = None) -> int:
         for name, ms in new.items():
             print(f"| {name} | {ms:.2f} |")
         return 0
-    with tempfile.TemporaryDirectory() as tmp:
-        old_tree = Path(tmp) / "old"
-        subprocess.run(["git", "worktree", "add", "--quiet", "--detach", str(old_tree), args.old],
-                       cwd=ROOT, check=True)
-        try:
-            olds, news = [], []
-            for _ in range(args.rounds):
-                olds.append(measure(old_tree, args.repeats))
-                news.append(measure(ROOT, args.repeats))
-        finally:
-            subprocess.run(["git", "worktree", "remove", "--force", str(old_tree)], cwd=ROOT, check=True)
+    with checked_out(args.old) as old_tree:
+        olds, news = [], []
+        for _ in range(args.rounds):
+            olds.append(measure(old_tree, args.repeats))
+            news.append(measure(ROOT, args.repeats))
     print(f"| check | {args.old} (ms) | this checkout (ms) | ratio |\n|---|---|---|---|")
     for name in news[0]:
         old = statistics.median(o[name] for o in olds if name in o) if name in olds[0] else float("nan")

@@ -18,7 +18,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+from worktree import ROOT, checked_out
 
 # Runs in a child process: the tree to import is its first argument. It handles both the
 # layered package and the flat one that preceded it.
@@ -57,18 +57,12 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.pairs < 1 or args.runs < 1:
         parser.error("--pairs and --runs must be at least 1")
-    with tempfile.TemporaryDirectory() as tmp:
-        old_tree = Path(tmp) / "old"
-        subprocess.run(["git", "worktree", "add", "--quiet", "--detach", str(old_tree), args.old],
-                       cwd=ROOT, check=True)
-        try:
-            old, new = [], []
-            for k in range(args.pairs):
-                old.append(median_seconds(old_tree, args.runs))
-                new.append(median_seconds(ROOT, args.runs))
-                print(f"pair {k + 1}: old {old[-1]:.3f} s, new {new[-1]:.3f} s, ratio {new[-1] / old[-1]:.3f}")
-        finally:
-            subprocess.run(["git", "worktree", "remove", "--force", str(old_tree)], cwd=ROOT, check=True)
+    with checked_out(args.old) as old_tree:
+        old, new = [], []
+        for k in range(args.pairs):
+            old.append(median_seconds(old_tree, args.runs))
+            new.append(median_seconds(ROOT, args.runs))
+            print(f"pair {k + 1}: old {old[-1]:.3f} s, new {new[-1]:.3f} s, ratio {new[-1] / old[-1]:.3f}")
     ratios = [n / o for n, o in zip(new, old)]
     print(f"median: old {statistics.median(old):.3f} s, new {statistics.median(new):.3f} s; "
           f"median ratio new/old {statistics.median(ratios):.3f}")
