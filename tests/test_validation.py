@@ -543,3 +543,25 @@ def test_as_flag_and_as_real_array():
     assert validation.as_real_array([[1, np.nan]], "x").dtype == np.float64
     with pytest.raises(ValueError, match=r"^x must not be empty"):
         validation.as_real_array([], "x")
+
+
+@pytest.mark.parametrize("value, kwargs, message", [
+    (np.zeros((6, 1)), {}, r"^r must be a 1-D array of shape \(N,\), got shape \(6, 1\)$"),
+    (np.zeros((4, 2)), {"tail": (3,)}, r"^r must have shape \(N, 3\), got shape \(4, 2\)$"),
+    (np.zeros((4, 3)), {"tail": (3,), "n": 5, "count": "K"}, r"^r must have shape \(K=5, 3\)"),
+    ("abc", {}, r"^r must be a 1-D array of shape \(N,\), got 'abc'$"),
+    ([0.0, 1.0, np.inf], {"offset": 100}, r"^r\[102\] is inf$"),
+    ([[0.0, 1.0], [np.nan, 2.0]], {"tail": (2,)}, r"^r\[1\] is NaN$"),
+])
+def test_as_rows_names_the_shape_or_the_first_bad_row(value, kwargs, message):
+    from kalman_course.core.validation import as_rows
+
+    with pytest.raises(ValueError, match=message):
+        as_rows(value, "r", **kwargs)
+
+
+def test_as_rows_returns_the_record_as_floats():
+    from kalman_course.core.validation import as_rows
+
+    out = as_rows([[1, 2, 3], [4, 5, 6]], "r", (3,), 2)
+    assert out.dtype == np.float64 and out.shape == (2, 3)

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kalman_course.core.validation import ROTATION_TOL
+from kalman_course.core.validation import ROTATION_TOL, as_rows
 
 __all__ = ["PositionObservations", "PoseObservations"]
 
@@ -39,44 +39,14 @@ def _readonly(arr: np.ndarray) -> np.ndarray:
     return out
 
 
-def _first_nonfinite(name: str, arr: np.ndarray) -> None:
-    """Raise ValueError naming the first row of ``arr`` that holds a NaN or an inf."""
-    finite = np.isfinite(arr)
-    bad = ~finite.all(axis=tuple(range(1, arr.ndim))) if arr.ndim > 1 else ~finite
-    if bad.any():
-        k = int(np.argmax(bad))
-        kind = "NaN" if np.isnan(arr[k]).any() else "inf"
-        raise ValueError(f"{name}[{k}] is {kind}")
-
-
 def _as_times(t) -> np.ndarray:
     """Return ``t`` as a finite, strictly increasing float64 vector (K,)."""
-    try:
-        arr = np.asarray(t, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"t must be a 1-D array of times in seconds, got {t!r}") from None
-    if arr.ndim != 1:
-        raise ValueError(f"t must be a 1-D array of shape (K,), got shape {arr.shape}")
-    _first_nonfinite("t", arr)
+    arr = as_rows(t, "t", count="K")
     step = np.diff(arr)
     if (step <= 0.0).any():
         k = int(np.argmax(step <= 0.0)) + 1
         raise ValueError(f"t must be strictly increasing: t[{k}] = {arr[k]:g} <= "
                          f"t[{k - 1}] = {arr[k - 1]:g}")
-    return arr
-
-
-def _as_rows(value, name: str, tail: tuple[int, ...], K: int) -> np.ndarray:
-    """Return ``value`` as a finite float64 array of shape (K, *tail)."""
-    want = "(" + ", ".join([f"K={K}", *map(str, tail)]) + ")"
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a numeric array of shape {want}") from None
-    if arr.shape != (K, *tail):
-        raise ValueError(f"{name} must have shape {want}, one row per time in t, "
-                         f"got shape {arr.shape}")
-    _first_nonfinite(name, arr)
     return arr
 
 
@@ -143,7 +113,7 @@ class PositionObservations:
 
     def __post_init__(self) -> None:
         t = _as_times(self.t)
-        position = _as_rows(self.position, "position", (3,), t.shape[0])
+        position = as_rows(self.position, "position", (3,), t.shape[0], count="K")
         object.__setattr__(self, "t", _readonly(t))
         object.__setattr__(self, "position", _readonly(position))
 
@@ -228,6 +198,6 @@ class PoseObservations(PositionObservations):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        rotation = _as_rows(self.rotation, "rotation", (3, 3), len(self))
+        rotation = as_rows(self.rotation, "rotation", (3, 3), len(self), count="K")
         _check_rotations(rotation, "rotation")
         object.__setattr__(self, "rotation", _readonly(rotation))

@@ -113,6 +113,52 @@ def as_vector(value, name: str, n: int | None = None) -> np.ndarray:
     return arr
 
 
+def as_rows(value, name: str, tail: tuple[int, ...] = (), n: int | None = None, *, offset: int = 0,
+            count: str = "N") -> np.ndarray:
+    """Return ``value`` as a finite float array of shape (n, *tail): one row per sample.
+
+    For records of samples (IMU readings, observations): a NaN or inf is reported by the
+    index of its row, ``imu.angular_rate[1234] is NaN``, counted from ``offset`` (the index
+    of the first row in the caller's record).
+
+    Parameters
+    ----------
+    value : array_like, shape (n, *tail)
+        The record.
+    name : str
+        Argument name used in error messages.
+    tail : tuple of int
+        The shape of one row; () for a vector of scalars.
+    n : int, optional
+        Required number of rows; None accepts any.
+    offset : int
+        Index of the first row, for the messages.
+    count : str
+        The letter that names the number of rows in messages (``N``, ``K``).
+
+    Raises
+    ------
+    ValueError
+        If ``value`` holds no real numbers, has another shape, or a NaN or inf (naming the
+        first such row).
+    """
+    rows = count if n is None else f"{count}={n}"
+    want = f"({rows},)" if not tail else "(" + ", ".join([rows, *map(str, tail)]) + ")"
+    expected = f"a 1-D array of shape {want}" if not tail else f"a numeric array of shape {want}"
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be {expected}, got {_short_repr(value)}") from None
+    if arr.shape[1:] != tuple(tail) or arr.ndim != 1 + len(tail) or (n is not None and arr.shape[0] != n):
+        rule = f"be {expected}" if not tail else f"have shape {want}"
+        raise ValueError(f"{name} must {rule}, got shape {arr.shape}")
+    finite = np.isfinite(arr)
+    if not finite.all():
+        k = int(np.argmin(finite.reshape(len(arr), -1).all(axis=1)))
+        raise ValueError(f"{name}[{k + offset}] is {'NaN' if np.isnan(arr[k]).any() else 'inf'}")
+    return arr
+
+
 def as_real_array(value, name: str) -> np.ndarray:
     """Return ``value`` as a non-empty float array of any shape; NaN and inf are kept.
 

@@ -73,7 +73,8 @@ from kalman_course.core import so3
 from kalman_course.core.imu import integrate_midpoint
 from kalman_course.core.linalg import gain, innovation_covariance, joseph_update, symmetrise
 from kalman_course.core.observations import PoseObservations, PositionObservations
-from kalman_course.core.validation import as_covariance, as_flag, as_matrix, as_rotation, as_scalar, as_vector
+from kalman_course.core.validation import (as_covariance, as_flag, as_matrix, as_rotation, as_rows, as_scalar,
+                                           as_vector)
 from kalman_course.filters.eskf_config import BIAS_MODELS, EskfConfig, load_config
 
 __all__ = [
@@ -205,24 +206,6 @@ def _as_config(config) -> EskfConfig:
                      f"got {type(config).__name__}")
 
 
-def _as_finite_rows(value, name: str, tail: tuple, offset: int = 0) -> np.ndarray:
-    """Return ``value`` as a float array (N, *tail); a NaN or inf raises naming its row."""
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a numeric array, got {type(value).__name__}") from None
-    if arr.ndim != 1 + len(tail) or arr.shape[1:] != tail:
-        want = ", ".join(["N", *map(str, tail)])
-        raise ValueError(f"{name} must have shape ({want}), got {arr.shape}")
-    finite = np.isfinite(arr)
-    if not finite.all():
-        rows = finite.reshape(len(arr), -1).all(axis=1)
-        k = int(np.argmin(rows))
-        kind = "NaN" if np.isnan(arr[k]).any() else "inf"
-        raise ValueError(f"{name}[{k + offset}] is {kind}")
-    return arr
-
-
 def _as_gravity(value) -> np.ndarray:
     """Gravity g (3,) in the navigation frame; a NaN or inf is reported with its index."""
     try:
@@ -231,7 +214,7 @@ def _as_gravity(value) -> np.ndarray:
         shape = None
     if shape != (3,):
         raise ValueError(f"gravity must have shape (3,) (m/s², navigation frame), got {shape}")
-    return _as_finite_rows(value, "gravity", ())
+    return as_rows(value, "gravity")
 
 
 def _as_time(value, name: str) -> float:
@@ -768,9 +751,9 @@ def _imu_samples(imu, start, t_end):
     n_imu = len(np.asarray(imu.t))
     if isinstance(start, (bool, np.bool_)) or not isinstance(start, (int, np.integer)) or not 0 <= start < n_imu:
         raise ValueError(f"start must be an integer index into imu.t (0 ≤ start < {n_imu}), got {start!r}")
-    t = _as_finite_rows(np.asarray(imu.t, dtype=float)[start:], "imu.t", (), start)
-    f = _as_finite_rows(np.asarray(imu.specific_force, dtype=float)[start:], "imu.specific_force", (3,), start)
-    w = _as_finite_rows(np.asarray(imu.angular_rate, dtype=float)[start:], "imu.angular_rate", (3,), start)
+    t = as_rows(np.asarray(imu.t, dtype=float)[start:], "imu.t", offset=start)
+    f = as_rows(np.asarray(imu.specific_force, dtype=float)[start:], "imu.specific_force", (3,), offset=start)
+    w = as_rows(np.asarray(imu.angular_rate, dtype=float)[start:], "imu.angular_rate", (3,), offset=start)
     if not len(f) == len(w) == len(t):
         raise ValueError(f"imu.t, imu.specific_force and imu.angular_rate must have the same length, got "
                          f"{n_imu}, {len(f) + start} and {len(w) + start}")
