@@ -27,7 +27,7 @@ from kalman_course.filters import eskf
 from kalman_course.evaluation import metrics
 from kalman_course.evaluation import consistency as consistency_stats
 from kalman_course.evaluation.pose import POSE_INDEX, evaluate
-from kalman_course.checks.harness import CheckFailed, call, check
+from kalman_course.checks.harness import CheckFailed, call, check, type_name
 from kalman_course.data import load_kitti
 from kalman_course.filters.eskf_config import load_config
 
@@ -247,7 +247,7 @@ def _scalar(value, what: str, v: str = "e", W: str = "P") -> float:
             raise CheckFailed(f"{what} should be one number, got a matrix of shape {arr.shape}. "
                               f"Hint: an outer product {v} ({W}⁻¹ {v})ᵀ: a transpose on the wrong side; "
                               f"{v}ᵀ {W}⁻¹ {v} is a scalar")
-        shape = f"a {type(value).__name__}" if arr is None else f"shape {arr.shape}"
+        shape = f"a {type_name(value)}" if arr is None else f"shape {arr.shape}"
         raise CheckFailed(f"{what} should be one number, got {shape}. Hint: {v}ᵀ {W}⁻¹ {v} is a scalar; "
                           f"did you return {W}⁻¹ {v} (a vector) or forget a product?")
     return float(arr.reshape(()))
@@ -463,7 +463,7 @@ def _interval(value):
     except (TypeError, ValueError):
         arr = None
     if arr is None or arr.shape != (2,):
-        shape = type(value).__name__ if arr is None else f"shape {arr.shape}"
+        shape = type_name(value) if arr is None else f"shape {arr.shape}"
         raise CheckFailed(f"chi2_interval must return two numbers (lo, hi), got {shape}")
     return arr
 
@@ -620,7 +620,7 @@ def check_innovation_gate(gate):
     for y, S, c in cases:
         answer = call(gate, y, S, c)
         if not isinstance(answer, (bool, np.bool_)):
-            raise CheckFailed(f"gate must return True or False, got {type(answer).__name__}")
+            raise CheckFailed(f"gate must return True or False, got {type_name(answer)}")
         answers.append(bool(answer))
     answers = np.array(answers)
     wrong = np.nonzero(answers != (values <= threshold))[0]

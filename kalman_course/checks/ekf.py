@@ -30,7 +30,7 @@ from kalman_course.chapters import beacons
 from kalman_course.core.angles import wrap_angle
 from kalman_course.core.linalg import gain, innovation_covariance, short_update, symmetrise
 from kalman_course.filters import ekf
-from kalman_course.checks.harness import CheckFailed, call, check, expect_shape, expect_symmetric
+from kalman_course.checks.harness import CheckFailed, call, check, expect_shape, expect_symmetric, type_name
 from kalman_course.chapters.motion import kitti_model_states
 
 RADAR_EXCERPT = "turns"
@@ -469,7 +469,7 @@ def _sequence(result, what: str, length: int | None, names: str):
     """
     if not isinstance(result, (tuple, list)) or (length is not None and len(result) != length) \
             or len(result) < 2:
-        raise CheckFailed(f"{what} must return a tuple {names}, got {type(result).__name__}"
+        raise CheckFailed(f"{what} must return a tuple {names}, got {type_name(result)}"
                           + (f" of length {len(result)}" if isinstance(result, (tuple, list)) else ""))
     if np.ndim(result[0]) == 2 and np.ndim(result[1]) == 1:
         raise CheckFailed(f"{what} returned the covariance first: return {names} in this order")
@@ -796,7 +796,7 @@ def check_iekf_update(iekf_update):
             try:
                 count = int(result[2])
             except (TypeError, ValueError):
-                raise CheckFailed(f"iterations should be an int, got {type(result[2]).__name__}") from None
+                raise CheckFailed(f"iterations should be an int, got {type_name(result[2])}") from None
         except CheckFailed as exc:
             pending = pending or exc           # judge the other runs first, as in check_ekf_update
             continue

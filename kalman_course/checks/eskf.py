@@ -38,7 +38,7 @@ from kalman_course.core import so3
 from kalman_course.core.linalg import symmetrise
 from kalman_course.evaluation.metrics import position_rmse
 from kalman_course.checks.harness import CheckFailed, call, check, expect_close, expect_shape, expect_symmetric
-from kalman_course.checks.harness import upstream_failure
+from kalman_course.checks.harness import learner_namespace, upstream_failure
 from kalman_course.data import load_kitti
 from kalman_course.filters.eskf import NominalState
 from kalman_course.filters.eskf_config import load_config
@@ -680,7 +680,7 @@ def _diagnose_run(run_eskf, result, ex, t_end, cfg) -> str | None:
        the lecture's first-order forms, accepted by their checks, change the numbers slightly).
     4. The same with one known run mistake at a time (``_RUN_MISTAKES``).
     """
-    namespace = getattr(run_eskf, "__globals__", {})
+    namespace = learner_namespace(run_eskf) or {}
     why = _failing_piece(namespace)
     if why:
         return why
@@ -720,10 +720,10 @@ def _failing_piece(namespace: dict) -> str:
 
 def _diagnose_crash(run_eskf, ex, t_end, cfg, message: str) -> str:
     """Why the learner's run raised ``message``: a failing piece, or a run mistake that raises the same."""
-    why = _failing_piece(getattr(run_eskf, "__globals__", {}))
+    why = _failing_piece(learner_namespace(run_eskf) or {})
     if why:
         return why
-    pieces = _learner_pieces(getattr(run_eskf, "__globals__", {}))
+    pieces = _learner_pieces(learner_namespace(run_eskf) or {})
     error = message.split(" raised ", 1)[-1]
     for mistake, hint in _RUN_MISTAKES:
         try:

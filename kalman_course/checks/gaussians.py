@@ -24,7 +24,7 @@ import numpy as np
 from kalman_course.core import gaussians
 from kalman_course.core.linalg import symmetrise
 from kalman_course.checks.harness import (CheckFailed, as_array, call, check, expect_close,
-                                          expect_symmetric)
+                                          expect_symmetric, type_name)
 
 
 def random_joint(n: int, m: int, seed: int, scales=None):
@@ -63,7 +63,7 @@ def _tuple(result, size: int, names: str, fn_name: str) -> tuple:
     if isinstance(result, (tuple, list)) and len(result) == size:
         return tuple(result)
     raise CheckFailed(f"{fn_name} must return {size} values {names} (a tuple or a list), "
-                      f"got {type(result).__name__}"
+                      f"got {type_name(result)}"
                       + (f" of length {len(result)}" if isinstance(result, (tuple, list)) else ""))
 
 

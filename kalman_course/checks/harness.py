@@ -21,6 +21,10 @@ from typing import Callable, Iterable
 
 import numpy as np
 
+from kalman_course.checks.kernel_agent import global_names
+from kalman_course.checks.plain_data import Opaque
+from kalman_course.checks.remote import LearnerFunction, LearnerNamespace, session_of
+
 SUCCESS = "{name}: passed"
 
 
@@ -59,7 +63,9 @@ def check(fn: Callable | None = None, *, uses: tuple[str, ...] | dict[str, str] 
     Returns
     -------
     callable
-        The wrapped check, with attributes ``check_name`` = ``<name>`` and ``uses``.
+        The wrapped check, with attributes ``check_name`` = ``<name>``, ``uses`` and
+        ``judge``: the same check without the printed line (it returns on success), which
+        the grading tool calls.
 
     Raises
     ------
@@ -77,8 +83,7 @@ def check(fn: Callable | None = None, *, uses: tuple[str, ...] | dict[str, str] 
                          f"got {getattr(fn, '__name__', fn)!r}")
     name = fn.__name__[len(CHECK_PREFIX):]
 
-    @functools.wraps(fn)
-    def run(*args, **kwargs):
+    def judge(*args, **kwargs):
         try:
             fn(*args, **kwargs)
         except CheckFailed as exc:
@@ -86,32 +91,45 @@ def check(fn: Callable | None = None, *, uses: tuple[str, ...] | dict[str, str] 
             if upstream is not None:
                 raise CheckFailed(f"{name}: {upstream}") from None
             raise CheckFailed(f"{name}: {exc}") from None
+
+    @functools.wraps(fn)
+    def run(*args, **kwargs):
+        judge(*args, **kwargs)
         print(SUCCESS.format(name=name))
 
     run.check_name = name
     run.uses = dict(uses)
+    run.judge = judge  # the verdict alone: returns, or raises CheckFailed; prints nothing
     _register(name, run)
     return run
 
 
-def _global_names(code: types.CodeType) -> set[str]:
-    """Global names a function's code refers to, including its comprehensions and lambdas."""
-    names = set(code.co_names)
-    for const in code.co_consts:
-        if isinstance(const, types.CodeType):
-            names |= _global_names(const)
-    return names
+def referenced_names(learner_fn) -> set[str]:
+    """The global names a learner function's code refers to (empty for a non-function)."""
+    if isinstance(learner_fn, LearnerFunction):
+        return learner_fn.referenced_names()
+    code = getattr(learner_fn, "__code__", None)
+    return global_names(code) if isinstance(code, types.CodeType) else set()
+
+
+def learner_namespace(learner_fn):
+    """Where the learner's other functions live: the notebook's globals (a dict in the
+    kernel, a :class:`LearnerNamespace` when grading from outside), or None. Both answer
+    ``.get(name)``."""
+    if isinstance(learner_fn, LearnerFunction):
+        return LearnerNamespace(learner_fn.session)
+    namespace = getattr(learner_fn, "__globals__", None)
+    return namespace if isinstance(namespace, dict) else None
 
 
 def _upstream_of(uses: dict[str, str], learner_fn) -> str | None:
     """:func:`upstream_failure` for the used functions that ``learner_fn``'s code refers to
     (a learner's ``nis`` that does not call ``nees`` is not blamed on a ``nees`` stub)."""
-    code = getattr(learner_fn, "__code__", None)
-    if not isinstance(code, types.CodeType):
+    if not uses:
         return None
-    refers = _global_names(code)
+    refers = referenced_names(learner_fn)
     return upstream_failure({name: check_name for name, check_name in uses.items() if name in refers},
-                            getattr(learner_fn, "__globals__", None))
+                            learner_namespace(learner_fn))
 
 
 def upstream_failure(uses: dict[str, str], namespace) -> str | None:
@@ -121,12 +139,12 @@ def upstream_failure(uses: dict[str, str], namespace) -> str | None:
     ----------
     uses : dict of str to str
         Learner function name -> the name of the check that grades it.
-    namespace : dict or None
-        Where the learner's functions live: the ``__globals__`` of the function under test
-        (the notebook's namespace), so the check sees exactly the ``kf_gain`` that the
-        learner's ``kf_update`` calls. Anything but a dict means there is nothing to ask.
+    namespace : dict, LearnerNamespace or None
+        Where the learner's functions live (:func:`learner_namespace` of the function under
+        test), so the check sees exactly the ``kf_gain`` that the learner's ``kf_update``
+        calls. None means there is nothing to ask.
     """
-    if not uses or not isinstance(namespace, dict):
+    if not uses or namespace is None:
         return None
     for dependency, check_name in uses.items():
         learner_fn = namespace.get(dependency)
@@ -134,8 +152,7 @@ def upstream_failure(uses: dict[str, str], namespace) -> str | None:
         if not callable(learner_fn) or dependency_check is None:
             continue
         try:
-            with contextlib.redirect_stdout(io.StringIO()):
-                dependency_check(learner_fn)
+            dependency_check.judge(learner_fn)
         except CheckFailed as exc:
             first_line = str(exc).split("\n")[0]
             return (f"your {dependency} fails its own check, and this function uses it: fix "
@@ -163,10 +180,24 @@ def call(fn: Callable, *args, label: str | None = None):
 
     An exception inside the learner's code becomes a ``CheckFailed`` naming the function
     and the exception, so the grader cell shows the learner's bug, not the harness.
+
+    When ``fn`` or an argument is a :class:`LearnerFunction` (grading from outside the
+    learner's kernel), the call runs in the learner's kernel: ``fn`` is the learner's
+    function, or a function of this package driving learner functions handed to it (a
+    whole filter built from the learner's steps); only plain data crosses.
     """
+    label = label or getattr(fn, "__name__", "your function")
+    session = session_of(fn, args)
+    if session is not None:
+        answer = session.call(fn, args)
+        if "not_callable" in answer:
+            raise CheckFailed(f"expected a function, got {answer['not_callable']}")
+        if "raised" in answer:
+            raised = answer["raised"]
+            raise CheckFailed(f"{label} raised {raised.type_name}: {raised.message}")
+        return answer["result"]
     if not callable(fn):
         raise CheckFailed(f"expected a function, got {type(fn).__name__}")
-    label = label or getattr(fn, "__name__", "your function")
     sink = io.StringIO()
     try:
         with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink), \
@@ -179,12 +210,17 @@ def call(fn: Callable, *args, label: str | None = None):
         raise CheckFailed(f"{label} raised {type(exc).__name__}: {exc}") from None
 
 
+def type_name(value) -> str:
+    """The name of a learner result's type (also of one that could not cross as plain data)."""
+    return value.type_name if isinstance(value, Opaque) else type(value).__name__
+
+
 def as_array(value, what: str) -> np.ndarray:
     """Convert a learner's result to a float array or fail saying what came back."""
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
-        raise CheckFailed(f"{what} should be a numeric array, got {type(value).__name__}") from None
+        raise CheckFailed(f"{what} should be a numeric array, got {type_name(value)}") from None
     return arr
 
 

@@ -28,7 +28,7 @@ import numpy as np
 from kalman_course.filters import kf
 from kalman_course import symbolic
 from kalman_course.checks.harness import (CheckFailed, as_array, call, check, expect_close,
-                                          expect_shape, expect_symmetric)
+                                          expect_shape, expect_symmetric, type_name)
 from kalman_course.core import linalg
 from kalman_course.data import load_kitti
 from kalman_course.evaluation.metrics import rmse
@@ -130,7 +130,7 @@ def _pair(result, fn_name: str, names: tuple[str, str], shapes=None):
     """
     if not isinstance(result, (tuple, list)) or len(result) != 2:
         raise CheckFailed(f"{fn_name} must return a tuple ({names[0]}, {names[1]}), got "
-                          f"{type(result).__name__}")
+                          f"{type_name(result)}")
     first, second = result
     if shapes is not None:
         try:

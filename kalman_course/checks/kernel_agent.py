@@ -1,0 +1,131 @@
+"""The grading process's hand inside the learner's kernel: run learner code on plain data.
+
+``kalman-course grade`` runs the learner's cells in their own kernel and the checks in the
+grading process. When a check calls a learner function, the grading process writes the
+call to a file and executes ``serve(globals(), request, response)`` in the kernel: this
+module decodes the arguments (:mod:`plain_data`), calls the function exactly as a grader
+cell would (prints and warnings silenced, floating-point warnings off, arguments fresh
+copies), and writes back the result as plain data, or the exception it raised.
+
+Nothing here knows an expected value, and nothing the kernel sends back is trusted beyond
+being data: a learner who replaces this module only changes what their own functions
+appear to return.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import io
+import types
+import warnings
+
+import numpy as np
+
+from kalman_course.checks import plain_data
+
+#: Dataclass instances received whole earlier in this kernel, by handle (see plain_data.encode).
+_HANDLES: dict[int, object] = {}
+
+
+def global_names(code: types.CodeType) -> set[str]:
+    """Global names a function's code refers to, including its comprehensions and lambdas."""
+    names = set(code.co_names)
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType):
+            names |= global_names(const)
+    return names
+
+
+def to_plain(value):
+    """Replace a learner's result that is not plain data by the nearest plain value.
+
+    Subclasses of ``str``, ``int``, ``float``, ``list``, ``tuple`` and ``dict`` become the
+    builtin (their value, not their methods, crosses); an array-like (a SymPy matrix, an
+    ``np.matrix``) becomes an array; anything else is reported by its type's name only.
+    """
+    for base in (bool, str, int, float, complex):
+        if isinstance(value, base):
+            return base.__new__(base, value) if base is not bool else bool(value)
+    if isinstance(value, np.ndarray):
+        return np.array(value, subok=False)
+    if isinstance(value, np.generic):
+        return value.item()
+    for container in (list, tuple, dict):
+        if isinstance(value, container):
+            return container(value)
+    if hasattr(value, "__array__"):
+        try:
+            arr = np.asarray(value)
+            if arr.dtype == object:
+                arr = arr.astype(float)
+            return np.array(arr, subok=False)
+        except Exception:  # an array-like that is not numeric
+            pass
+    return plain_data.Opaque(type(value).__name__)
+
+
+def _lookup(namespace: dict):
+    def learner_object(name: str):
+        if name not in namespace:
+            raise NameError(f"name '{name}' is not defined")
+        return namespace[name]
+    return learner_object
+
+
+def _describe(namespace: dict, name: str) -> dict:
+    """Whether ``name`` is defined and callable, and the global names its code refers to."""
+    obj = namespace.get(name)
+    code = getattr(obj, "__code__", None)
+    return {"defined": name in namespace, "callable": callable(obj), "type": type(obj).__name__,
+            "globals": sorted(global_names(code)) if isinstance(code, types.CodeType) else None}
+
+
+def _call(namespace: dict, request: dict):
+    fn = request["callee"]
+    if not callable(fn):
+        return {"not_callable": type(fn).__name__}
+    sink = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink), \
+                warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            result = fn(*copy.deepcopy(request["args"]))
+    except (Exception, SystemExit) as exc:  # the learner's code may raise anything
+        return {"raised": plain_data.Raised(type(exc).__name__, str(exc))}
+    return {"result": result}
+
+
+def serve(namespace: dict, request_path: str, response_path: str, handles: dict | None = None) -> None:
+    """Answer one request of the grading process (called by the code it executes here).
+
+    Parameters
+    ----------
+    namespace : dict
+        The notebook's globals, where the learner's functions live.
+    request_path, response_path : str
+        Files: the request to read, the answer to write (both plain-data JSON).
+    handles : dict, optional
+        Where dataclass instances sent whole are kept for later requests (default: this
+        module's store, one per kernel).
+    """
+    with open(request_path, encoding="utf-8") as fh:
+        text = fh.read()
+    try:
+        request = plain_data.decode(text, from_kernel=False, learner_lookup=_lookup(namespace),
+                                    handles=_HANDLES if handles is None else handles)
+        if request["op"] == "describe":
+            answer = _describe(namespace, request["name"])
+        else:
+            answer = _call(namespace, request)
+    except NameError as exc:  # a learner function handed to another one is not defined
+        answer = {"raised": plain_data.Raised("NameError", str(exc))}
+    except Exception as exc:  # a malformed request: only if something replaced the grader's
+        answer = {"raised": plain_data.Raised(type(exc).__name__, f"the request could not be read: {exc}")}
+    try:
+        out = plain_data.encode(answer, towards_kernel=False, convert=to_plain)
+    except (plain_data.NotPlainData, RecursionError, ValueError, TypeError):
+        result = answer.get("result")
+        out = plain_data.encode({"result": plain_data.Opaque(type(result).__name__)}, towards_kernel=False)
+    with open(response_path, "w", encoding="utf-8") as fh:
+        fh.write(out)
