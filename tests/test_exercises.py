@@ -1,7 +1,10 @@
 """Every exercise, run in a kernel: solutions pass, exercises fail, each stub fails alone.
 
 These are the guarantees the course makes to learners: a correct notebook earns every
-point, the released exercise earns none, and no stub goes unnoticed by its grader.
+point, the released exercise earns none, and no stub goes unnoticed by its grader. Each
+notebook is graded as ``kalman-course grade`` grades (checks outside the kernel) with every
+grader cell also run inside the kernel, and the two verdicts must agree: grading from
+outside changes no honest learner's points.
 """
 
 import csv
@@ -48,9 +51,10 @@ _KINDS = {"test_solution_passes_every_grader": "solution", "test_exercise_fails_
 
 @pytest.fixture(scope="module")
 def outcomes(request):
-    """Run every notebook the selected tests need at once: two pytest processes, a kernel each.
+    """Grade every notebook the selected tests need at once: two workers, a kernel each.
 
-    Returns {(kind, file name, stub id or None): {cell id: passed}}.
+    Returns {(kind, file name, stub id or None): (status, detail, {cell id: passed},
+    {cell id: passed inside the kernel})}.
     """
     wanted = {}
     for item in request.session.items:
@@ -59,16 +63,18 @@ def outcomes(request):
             path, stub = item.callspec.params["path"], item.callspec.params.get("stub")
             wanted[(kind, path.name, stub.stub_id if stub else None)] = (kind, path, stub)
     keys = list(wanted)
-    runs = grading.run_notebooks([_variant(*wanted[k]) for k in keys], timeout=120, jobs=2)
-    result = {}
-    for key, (status, cells, detail) in zip(keys, runs):
-        result[key] = (status, detail, {c["cell_id"]: c["passed"] for c in cells})
-    return result
+    release = grading.load_release(ROOT / "exercises")
+    submissions = [((key[1], _variant(*wanted[key])), "-") for key in keys]
+    results = grading.grade_many(submissions, release, timeout=120, jobs=2, compare=True)
+    return {key: (r.status, r.detail, {c.cell_id: c.points == c.possible for c in r.checks},
+                  {c.cell_id: c.in_kernel for c in r.checks}) for key, r in zip(keys, results)}
 
 
 def _outcome(outcomes, key) -> dict[str, bool]:
-    status, detail, cells = outcomes[key]
-    assert status == grading.GRADED, detail
+    status, detail, cells, in_kernel = outcomes[key]
+    assert status in grading.RAN_TO_THE_END, detail
+    differ = {cid: (cells[cid], in_kernel[cid]) for cid in cells if in_kernel[cid] is not cells[cid]}
+    assert not differ, f"graded outside vs inside the kernel (cell: (outside, inside)): {differ}"
     return cells
 
 
@@ -111,7 +117,7 @@ def test_grade_restores_a_tampered_grader_and_never_writes_the_submission(tmp_pa
                      "--release", str(ROOT / "exercises"), "--json", str(tmp_path / "g.json")])
     assert code == 0
     tampered_result, untouched_result = json.loads((tmp_path / "g.json").read_text())
-    assert tampered_result["tampered"] == [cid]
+    assert tampered_result["tampered"] == [f"cell {cid}: source edited"]
     assert tampered_result["checks"] == untouched_result["checks"]
     assert tampered_result["points"] == 0 and tampered_result["possible"] > 0
     assert hashlib.sha256((sub_dir / name).read_bytes()).hexdigest() == digest

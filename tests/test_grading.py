@@ -1,4 +1,4 @@
-"""Grading without a kernel: restoring grader cells, reading nbval reports, the table."""
+"""Grading without a kernel: restoring grader cells and reporting tampering, reading notebooks, the table."""
 
 import copy
 
@@ -31,7 +31,7 @@ def test_edited_grader_is_restored_and_reported():
     sub.cells[2].source = 'print("f_check: passed")'
     before = copy.deepcopy(sub)
     nb, tampered, readded = grading.restore_graders(sub, _release())
-    assert tampered == ["grader-f_check"] and readded == []
+    assert tampered == ["cell grader-f_check: source edited"] and readded == []
     assert nb.cells[2].source == "checks.f_check(f)"
     assert sub == before, "the submission object itself must not change"
 
@@ -51,19 +51,69 @@ def test_deleted_or_renamed_grader_is_readded_in_place(change_id):
     assert [c["id"] for c in graders] == ["grader-f_check"], "a renamed copy must not be graded"
 
 
-def test_learner_cells_cannot_opt_into_or_out_of_grading():
+def test_learner_cells_cannot_pose_as_graders():
     sub = _release()
     sub.cells[1].metadata["tags"] = ["nbval-skip", "grader", "nbval-check-output"]
-    nb, _, _ = grading.restore_graders(sub, _release())
-    assert nb.cells[1].metadata["tags"] == ["nbval-ignore-output"]
+    sub.cells[1].metadata["kalman_course"] = {"check": "f_check", "points": 9}
+    nb, tampered, _ = grading.restore_graders(sub, _release())
+    assert nb.cells[1].metadata["tags"] == ["nbval-skip"] and "kalman_course" not in nb.cells[1].metadata
+    assert tampered == ["cell code: a learner cell carried grader tags grader, nbval-check-output (removed)"]
 
 
-def test_exception_summary_finds_the_check_message():
-    report = ("Notebook cell execution failed\nCell 3: Cell execution caused an exception\n"
-              "\x1b[0;31mCheckFailed\x1b[0m: kf_predict: P_check is wrong. Hint: add Q\n")
-    assert grading.exception_summary(report) == "CheckFailed: kf_predict: P_check is wrong. Hint: add Q"
-    assert grading.exception_summary("NameError: name 'f' is not defined") == \
-        "NameError: name 'f' is not defined"
+def _renamed_copy(cell, cid):
+    cell = copy.deepcopy(cell)
+    cell["id"] = cid
+    return cell
+
+
+def _tamper(change):
+    def edit(nb):
+        change(nb)
+        return nb
+    return edit
+
+
+# what a learner may change in the JSON alone, and the words its report must contain
+JSON_EDITS = {
+    "points": (_tamper(lambda nb: nb.cells[2].metadata["kalman_course"].update(points=20)), "grading metadata"),
+    "skip_tag": (_tamper(lambda nb: nb.cells[2].metadata["tags"].append("nbval-skip")), "tags changed (+nbval-skip)"),
+    "tag_removed": (_tamper(lambda nb: nb.cells[2].metadata["tags"].remove("nbval-check-output")),
+                    "tags changed (-nbval-check-output)"),
+    "fake_output": (_tamper(lambda nb: nb.cells[2].outputs.append(
+        {"output_type": "stream", "name": "stdout", "text": "g_check: passed\n"})), "stored output edited"),
+    "made_markdown": (_tamper(lambda nb: nb.cells[2].update(cell_type="markdown")), "turned into a markdown cell"),
+    "chapter": (_tamper(lambda nb: nb.metadata["kalman_course"].update(chapter="01")), "kalman_course.chapter"),
+    "fake_grader": (_tamper(lambda nb: nb.cells.insert(3, _renamed_copy(nb.cells[2], "fake"))),
+                    "cell fake: a learner cell carried grader tags"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(JSON_EDITS))
+def test_json_edits_are_restored_and_each_reported(name):
+    change, words = JSON_EDITS[name]
+    nb, tampered, _ = grading.restore_graders(change(_release()), _release())
+    assert len(tampered) == 1 and words in tampered[0], tampered
+    grader = next(c for c in nb.cells if c.get("id") == "grader-f_check")
+    assert grader == _release().cells[2]
+    assert nb.metadata["kalman_course"] == _release().metadata["kalman_course"]
+    assert [c.get("id") for c in nb.cells if grading.grader_info(c)] == ["grader-f_check"]
+
+
+@pytest.mark.parametrize("outputs", [
+    [], [{"output_type": "error", "ename": "CheckFailed", "evalue": "f_check: wrong", "traceback": []}]])
+def test_outputs_a_real_run_stores_are_not_tampering(outputs):
+    sub = _release()
+    sub.cells[2].outputs = outputs
+    sub.cells[2].execution_count = 7
+    sub.cells[2].metadata["collapsed"] = True  # JupyterLab's own cell metadata
+    assert grading.restore_graders(sub, _release())[1] == []
+
+
+def test_grader_call_reads_only_the_released_form():
+    assert grading.grader_call("checks.kf_update(kf_update)") == ("kf_update", ["kf_update"])
+    for bad in ("checks.kf_update(kf_update, x=1)", "print('kf_update: passed')", "c.kf(f)", "checks.f(g())"):
+        with pytest.raises(ValueError, match="checks.NAME"):
+            grading.grader_call(bad)
 
 
 def test_chapter_from_metadata_or_file_name(tmp_path):
@@ -78,13 +128,20 @@ def test_missing_release_folder_is_a_clear_error(tmp_path):
 
 
 @pytest.mark.parametrize("content, name", [("", "empty.ipynb"), ("{not json", "corrupt.ipynb"),
-                                           ("hello", "notes.txt")])
+                                           ("hello", "notes.txt"), ('{"nbformat": 3, "worksheets": []}', "old.ipynb"),
+                                           ('{"nbformat": 4, "cells": [{"cell_type": "code", "source": 3}]}',
+                                            "bad_cell.ipynb")])
 def test_unreadable_files_are_reported_not_raised(tmp_path, content, name):
     path = tmp_path / name
     path.write_text(content)
     result = grading.grade_notebook(path, {"07": _release()})
-    assert result.status == grading.NOT_A_NOTEBOOK
+    assert result.status == grading.NOT_A_NOTEBOOK and result.detail.startswith("cannot read it as a notebook: ")
     assert path.read_text() == content
+
+
+def test_a_missing_file_is_named_as_missing(tmp_path):
+    result = grading.grade_notebook(tmp_path / "07_gone.ipynb", {"07": _release()})
+    assert (result.status, result.detail) == (grading.NOT_A_NOTEBOOK, "no such file")
 
 
 def test_table_and_gradebooks(tmp_path):
@@ -119,9 +176,9 @@ def test_a_failing_review_never_costs_the_grade(tmp_path, monkeypatch):
     def broken_review(nb, ref):
         raise RecursionError("deep")
 
-    passed = [{"cell_id": "grader-f_check", "passed": True, "message": ""}]
+    passed = {"grader-f_check": grading._GraderVerdict(True)}
     monkeypatch.setattr(grading, "review_flags", broken_review)
-    monkeypatch.setattr(grading, "run_notebook", lambda nb, timeout: (grading.GRADED, passed, ""))
+    monkeypatch.setattr(grading, "run_graded", lambda nb, timeout, compare: (grading.GRADED, passed, [], ""))
     path = tmp_path / "07_x.ipynb"
     nbformat.write(nbformat.from_dict(_release()), path)
     result = grading.grade_notebook(path, {"07": _release()})

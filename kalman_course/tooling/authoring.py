@@ -28,8 +28,6 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-import nbformat
-
 from kalman_course.tooling.notebooks import normalise, notebook_text
 
 BEGIN_RE = re.compile(r"^(?P<indent>[ \t]*)# BEGIN SOLUTION (?P<check>[A-Za-z_][\w]*)[ \t]*$")
@@ -192,6 +190,8 @@ def build_exercise(solution_path: str | Path):
         If markers are malformed, a stub names a check with no grader cell, a grader cell
         lacks its metadata, or a grader has no stub (it could never fail).
     """
+    import nbformat  # here, not at the top: grading imports this module and not nbformat
+
     solution_path = Path(solution_path)
     nb = nbformat.read(solution_path, as_version=4)
     stubs = list_stubs(nb)

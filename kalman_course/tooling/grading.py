@@ -1,34 +1,35 @@
-"""Grade exercise notebooks: restore grader cells, run under nbval, count points.
+"""Grade exercise notebooks: restore grader cells, run the learner's cells, judge outside.
 
-The learner's file is never written to. Each submission is copied into a temporary
-folder, its grader cells are restored from the released exercise (by cell id: edited
-ones replaced and reported, deleted ones re-added), and the copy is run by nbval in a
-subprocess with its own kernel and a per-cell timeout. A grader cell earns its points
-when nbval passes it: it ran without error and printed exactly the stored success line.
+The learner's file is never written to. Each submission's grader cells and grading
+metadata are restored from the released exercise (by cell id: each change reported, deleted
+graders re-added). Then the learner's cells run in a fresh kernel of their own, in order,
+with a per-cell timeout; at each grader cell the check runs in this process and calls the
+learner's functions in the kernel, with plain data crossing both ways
+(:mod:`kalman_course.checks.remote`). Expected values and comparisons never enter the
+learner's kernel, so nothing a learner's cell does there can change a verdict; the grader
+cells' own output (the learner's instant feedback in JupyterLab) is not used.
 """
 
 from __future__ import annotations
 
+import ast
+import contextlib
 import copy
 import csv
+import io
 import json
-import os
 import re
-import signal
-import subprocess
-import sys
 import tempfile
+import threading
 import time
+import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-import nbformat
-
-from kalman_course.tooling.authoring import CHECK_OUTPUT_TAG, GRADER_TAG, IGNORE_OUTPUT_TAG, grader_info
+from kalman_course.tooling.authoring import CHECK_OUTPUT_TAG, GRADER_TAG, grader_info
+from kalman_course.tooling.notebooks import NotebookError, read_notebook
 from kalman_course.tooling.review import review_flags
 
-ANSI_RE = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
-EXCEPTION_LINE_RE = re.compile(r"^\s*([A-Za-z_][\w.]*(?:Error|Failed|Exception|Interrupt)): (.+)$", re.M)
 
 #: Statuses of a graded notebook. Only GRADED and TAMPERED_RESTORED ran to the end.
 GRADED, TAMPERED_RESTORED, TIMED_OUT, KERNEL_DIED, NOT_A_NOTEBOOK, NO_RELEASE, RUN_ERROR = (
@@ -49,6 +50,7 @@ class CheckResult:
     points: int
     possible: int
     message: str = ""
+    in_kernel: bool | None = None  # the grader cell's own verdict in the kernel (only when compared)
 
 
 @dataclass
@@ -86,19 +88,6 @@ class NotebookResult:
         return ""
 
 
-def exception_summary(report: str) -> str:
-    """Return the most telling line of an nbval failure report (the last exception raised)."""
-    text = ANSI_RE.sub("", report)
-    found = EXCEPTION_LINE_RE.findall(text)
-    if found:
-        name, msg = found[-1]
-        return f"{name.rsplit('.', 1)[-1]}: {msg.strip()}"
-    if "mismatch" in text.lower():
-        return "output differs from the expected success line"
-    lines = [line.strip() for line in text.splitlines() if line.strip()]
-    return lines[0] if lines else "failed"
-
-
 def chapter_of_notebook(nb, path: Path) -> str:
     """Chapter from the notebook metadata, else from a ``NN_`` file-name prefix ('' if neither)."""
     chapter = nb.metadata.get("kalman_course", {}).get("chapter")
@@ -108,27 +97,55 @@ def chapter_of_notebook(nb, path: Path) -> str:
     return m.group(1) if m else ""
 
 
-def load_release(release_dir: str | Path) -> dict[str, nbformat.NotebookNode]:
+def load_release(release_dir: str | Path) -> dict:
     """Read the released exercises, keyed by chapter."""
     release_dir = Path(release_dir)
     if not release_dir.is_dir():
         raise FileNotFoundError(f"release folder not found: {release_dir} (pass --release DIR)")
     release = {}
     for path in sorted(release_dir.glob("[0-9][0-9]_*.ipynb")):
-        nb = nbformat.read(path, as_version=4)
+        nb = read_notebook(path)
         release[chapter_of_notebook(nb, path)] = nb
     return release
 
 
+def _describe_tags(before, after) -> str:
+    added, removed = sorted(set(after) - set(before)), sorted(set(before) - set(after))
+    return ", ".join([f"+{t}" for t in added] + [f"-{t}" for t in removed])
+
+
+def _success_line(check: str) -> str:
+    from kalman_course.checks.harness import SUCCESS
+
+    return SUCCESS.format(name=check) + "\n"
+
+
+def _honest_outputs(outputs, check: str) -> bool:
+    """Whether a grader cell's stored outputs are what running it can print: nothing, the
+    success line, or an error (a learner who runs the notebook stores one of these)."""
+    kinds = [o.get("output_type") for o in outputs]
+    if not outputs:
+        return True
+    if kinds == ["stream"]:
+        return outputs[0].get("name") == "stdout" and outputs[0].get("text") == _success_line(check)
+    return kinds == ["error"]
+
+
 def restore_graders(submission, release):
-    """Return a copy of ``submission`` whose grader cells are exactly the release's.
+    """Return a copy of ``submission`` whose grader cells and grading metadata are the release's.
+
+    Every difference that grading would read is restored and described: a grader cell's
+    source, type, tags, metadata (its check and points) and stored outputs that running it
+    cannot have produced; grading tags or metadata on a learner's own cell (a fake grader);
+    the notebook's ``kalman_course`` metadata (a key the release has, changed; a solution
+    notebook, which has none of them, is not reported).
 
     Returns
     -------
     nb : NotebookNode
         The notebook to run.
     tampered : list of str
-        Ids of grader cells whose source had been changed (now restored).
+        One line per restored change, naming the cell id and what was changed.
     readded : list of str
         Ids of grader cells that were missing (now re-inserted where the release has them).
     """
@@ -136,18 +153,35 @@ def restore_graders(submission, release):
     release_ids = [c.get("id") for c in release.cells]
     graders = {c["id"]: c for c in release.cells if grader_info(c)}
     tampered, readded = [], []
-    # Learner cells may carry any tags; make sure none is graded or skipped by nbval.
     for cell in nb.cells:
-        if cell.cell_type == "code" and cell.get("id") not in graders:
-            tags = [t for t in cell.metadata.get("tags", [])
-                    if t not in (GRADER_TAG, CHECK_OUTPUT_TAG) and not t.startswith("nbval")]
-            cell.metadata["tags"] = tags + [IGNORE_OUTPUT_TAG]
-            cell.metadata.pop("kalman_course", None)
+        if cell.get("id") in graders:
+            continue
+        tags = cell.metadata.get("tags", [])
+        fake = [t for t in tags if t in (GRADER_TAG, CHECK_OUTPUT_TAG)]
+        if fake or "kalman_course" in cell.metadata:
+            tampered.append(f"cell {cell.get('id')}: a learner cell carried grader "
+                            + ("tags " + ", ".join(fake) if fake else "metadata") + " (removed)")
+        cell.metadata["tags"] = [t for t in tags if t not in (GRADER_TAG, CHECK_OUTPUT_TAG)]
+        cell.metadata.pop("kalman_course", None)
     position = {c.get("id"): i for i, c in enumerate(nb.cells)}
     for gid, ref in graders.items():
         if gid in position:
-            if nb.cells[position[gid]].source != ref.source:
-                tampered.append(gid)
+            cell = nb.cells[position[gid]]
+            check = grader_info(ref)[0]
+            changes = []
+            if cell.get("cell_type") != ref.cell_type:
+                changes.append(f"turned into a {cell.get('cell_type')} cell")
+            if cell.get("source") != ref.source:
+                changes.append("source edited")
+            if sorted(cell.get("metadata", {}).get("tags", [])) != sorted(ref.metadata.get("tags", [])):
+                changes.append("tags changed (" + _describe_tags(ref.metadata.get("tags", []),
+                                                                 cell.get("metadata", {}).get("tags", [])) + ")")
+            if cell.get("metadata", {}).get("kalman_course") != ref.metadata.get("kalman_course"):
+                changes.append("grading metadata changed (check or points)")
+            if not _honest_outputs(cell.get("outputs", []), check):
+                changes.append("stored output edited")
+            if changes:
+                tampered.append(f"cell {gid}: " + "; ".join(changes))
             nb.cells[position[gid]] = copy.deepcopy(ref)
             continue
         # Re-insert after the nearest preceding release cell that the submission still has.
@@ -159,89 +193,127 @@ def restore_graders(submission, release):
         nb.cells.insert(insert_at, copy.deepcopy(ref))
         readded.append(gid)
         position = {c.get("id"): i for i, c in enumerate(nb.cells)}
+    submitted = nb.metadata.get("kalman_course")
+    submitted = submitted if isinstance(submitted, dict) else {}
+    released = release.metadata.get("kalman_course", {})
+    tampered += [f"notebook metadata kalman_course.{key} changed" for key in released
+                 if key in submitted and submitted[key] != released[key]]
+    nb.metadata["kalman_course"] = copy.deepcopy(released)
     nb.metadata["kernelspec"] = copy.deepcopy(release.metadata.get("kernelspec", {}))
     return nb, tampered, readded
 
 
-def run_notebook(nb, *, timeout: float = 120.0) -> tuple[str, list[dict], str]:
-    """Run ``nb`` under ``pytest --nbval-lax`` in a fresh kernel, in a temporary folder.
+def grader_call(source: str) -> tuple[str, list[str]]:
+    """(check name, learner names) of a released grader cell ``checks.NAME(arg, ...)``.
 
-    Parameters
-    ----------
-    nb : NotebookNode
-        The notebook (already restored); it is written to a temporary copy only.
-    timeout : float
-        Per-cell timeout in seconds.
+    Raises
+    ------
+    ValueError
+        If the cell is anything else (the release is broken; ``kalman-course build`` writes
+        grader cells of exactly this form).
+    """
+    try:
+        tree = ast.parse(source)
+    except SyntaxError:
+        tree = None
+    node = tree.body[0].value if tree and len(tree.body) == 1 and isinstance(tree.body[0], ast.Expr) else None
+    if not (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+            and isinstance(node.func.value, ast.Name) and node.func.value.id == "checks"
+            and not node.keywords and all(isinstance(a, ast.Name) for a in node.args)):
+        raise ValueError(f"a released grader cell must read checks.NAME(learner_name, ...), got {source!r}")
+    return node.func.attr, [a.id for a in node.args]
+
+
+@dataclass
+class _GraderVerdict:
+    passed: bool
+    message: str = ""
+    in_kernel: bool | None = None  # the grader cell's own verdict, when compared
+
+
+def _judge(session, check_name: str, names: list[str]) -> tuple[bool, str]:
+    """Run check ``check_name`` here, on the learner's functions ``names`` in their kernel."""
+    from kalman_course.checks import CheckFailed, registered
+    from kalman_course.checks.remote import LearnerFunction
+
+    check = registered().get(check_name)
+    if check is None:
+        return False, f"no check named {check_name} in this version of the course"
+    session.deadline = time.monotonic() + session.timeout
+    try:
+        with contextlib.redirect_stdout(io.StringIO()), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            check.judge(*[LearnerFunction(session, name) for name in names])
+    except CheckFailed as exc:
+        return False, f"CheckFailed: {exc}"
+    except Exception as exc:  # a bug in the check, not the learner's: report it plainly
+        return False, f"the check could not run ({type(exc).__name__}: {exc})"
+    finally:
+        session.deadline = None
+    return True, ""
+
+
+def run_graded(nb, *, timeout: float = 120.0, compare: bool = False):
+    """Run a restored notebook in a fresh kernel; judge each grader cell in this process.
+
+    Learner cells run in the kernel in order. At each grader cell, its check runs here,
+    calling the learner's functions in the kernel (only plain data crosses); the grader
+    cell itself does not run, unless ``compare`` is set, when it also runs in the kernel
+    and its own verdict (the success line printed, no error) is recorded next to this one.
 
     Returns
     -------
     status : str
-        GRADED, TIMED_OUT, KERNEL_DIED or RUN_ERROR.
-    cells : list of dict
-        nbval's per-code-cell results (cell_id, index, passed, message).
+        GRADED, TIMED_OUT or KERNEL_DIED.
+    verdicts : dict
+        grader cell id -> :class:`_GraderVerdict` (cells not reached are missing).
+    errors : list of (str, str)
+        (cell id, "Name: message") of the learner's cells that raised.
     detail : str
         What went wrong when the status is not GRADED.
     """
-    return run_notebooks([nb], timeout=timeout)[0]
+    from kalman_course.checks.remote import KernelLost
+    from kalman_course.tooling.kernel_session import KernelSession
 
-
-def run_notebooks(nbs: list, *, timeout: float = 120.0, jobs: int = 1) -> list[tuple[str, list[dict], str]]:
-    """Run several notebooks, each in its own kernel, in ``jobs`` parallel pytest processes.
-
-    Sharing one pytest process between notebooks saves its start-up time; each notebook
-    still gets a fresh kernel. Returns one (status, cells, detail) per notebook, as
-    :func:`run_notebook` does.
-    """
-    jobs = max(1, min(jobs, len(nbs)))
+    verdicts, errors = {}, []
+    # the checks (SymPy, the excerpts) are imported while the kernel starts and runs the first cells
+    importing = threading.Thread(target=registered_checks, daemon=True)
+    importing.start()
     with tempfile.TemporaryDirectory(prefix="kalman-grade-") as tmp:
-        tmp = Path(tmp)
-        (tmp / "pytest.ini").write_text("[pytest]\n", encoding="utf-8")
-        names = [f"submission_{i:03d}.ipynb" for i in range(len(nbs))]
-        for nb, name in zip(nbs, names):
-            nbformat.write(nb, tmp / name)
-        procs = []
-        for job in range(jobs):
-            chunk = names[job::jobs]
-            results = tmp / f"results_{job}.json"
-            cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--color=no",
-                   "-p", "kalman_course.tooling.nbval_results", "--nbval-lax", "--nbval-current-env",
-                   f"--nbval-cell-timeout={timeout:g}", "-c", str(tmp / "pytest.ini"),
-                   "--rootdir", str(tmp), *chunk]
-            env = dict(os.environ, KALMAN_COURSE_RESULTS=str(results))
-            env.pop("MPLBACKEND", None)  # the kernel picks its inline backend, as in JupyterLab
-            proc = subprocess.Popen(cmd, cwd=tmp, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                    text=True, start_new_session=True)
-            n_code = sum(c.cell_type == "code" for i in range(job, len(nbs), jobs) for c in nbs[i].cells)
-            procs.append((proc, chunk, results, time.monotonic() + timeout * max(n_code, 1) + 60))
-        outcome: dict[str, tuple[str, list[dict], str]] = {}
-        for proc, chunk, results, deadline in procs:
-            try:
-                out, _ = proc.communicate(timeout=max(deadline - time.monotonic(), 1))
-            except subprocess.TimeoutExpired:
-                os.killpg(proc.pid, signal.SIGKILL)  # the kernels are in this process group too
-                proc.communicate()
-                outcome.update({name: (TIMED_OUT, [], "the whole notebook ran out of time") for name in chunk})
-                continue
-            if not results.exists():
-                detail = "nbval did not run: " + (out.strip().splitlines() or ["no output"])[-1]
-                outcome.update({name: (RUN_ERROR, [], detail) for name in chunk})
-                continue
-            cells = json.loads(results.read_text(encoding="utf-8"))
-            for name in chunk:
-                outcome[name] = _notebook_status([c for c in cells if c["file"] == name], timeout)
-    return [outcome[name] for name in names]
+        session = KernelSession(tmp, timeout)
+        try:
+            session.wait_until_ready()
+            for cell in nb.cells:
+                if cell.cell_type != "code":
+                    continue
+                info = grader_info(cell)
+                if info is None:
+                    outcome = session.run_cell(cell.source)
+                    if outcome.status != "ok":
+                        errors.append((cell.get("id"), outcome.error))
+                    continue
+                importing.join()
+                passed, message = _judge(session, *grader_call(cell.source))
+                verdict = _GraderVerdict(passed, message)
+                if compare:
+                    outcome = session.run_cell(cell.source, capture=True)
+                    verdict.in_kernel = (outcome.status == "ok"
+                                         and outcome.stdout == _success_line(info[0]))
+                verdicts[cell["id"]] = verdict
+        except KernelLost as lost:
+            return lost.status, verdicts, errors, lost.detail
+        finally:
+            session.close()
+    if session.timed_out:
+        return TIMED_OUT, verdicts, errors, f"a cell ran longer than {timeout:g} s"
+    return GRADED, verdicts, errors, ""
 
 
-def _notebook_status(cells: list[dict], timeout: float) -> tuple[str, list[dict], str]:
-    """Tell from nbval's cell reports whether the notebook ran to the end."""
-    messages = " ".join(c["message"] for c in cells)
-    # A dead kernel first shows as a timeout of the cell that killed it (nbval only waits
-    # for a reply), then as "Kernel dead" on every later cell: test for that first.
-    if re.search(r"Kernel (?:dead|died)", messages, re.I):
-        return KERNEL_DIED, cells, "the kernel died (os._exit, a crash, or out of memory)"
-    if "Timeout of" in messages:
-        return TIMED_OUT, cells, f"a cell ran longer than {timeout:g} s"
-    return GRADED, cells, ""
+def registered_checks() -> dict:
+    """Every check, importing them on first use (SymPy and the excerpts take a moment)."""
+    from kalman_course.checks import registered
+
+    return registered()
 
 
 def learner_of(path: Path, root: Path | None = None) -> str:
@@ -263,18 +335,32 @@ def learner_of(path: Path, root: Path | None = None) -> str:
 
 
 def grade_notebook(path: str | Path, release: dict, *, timeout: float = 120.0,
-                   learner: str = "-") -> NotebookResult:
-    """Grade one submitted notebook against the released exercises (``release`` by chapter)."""
+                   learner: str = "-", compare: bool = False) -> NotebookResult:
+    """Grade one submitted notebook against the released exercises (``release`` by chapter).
+
+    ``compare`` also runs each grader cell inside the learner's kernel and records that
+    verdict as ``CheckResult.in_kernel`` (the tests use it to prove both ways agree).
+    """
     path = Path(path)
     result = NotebookResult(path=str(path), learner=learner)
     start = time.perf_counter()
     try:
-        submission = nbformat.read(path, as_version=4)
-        nbformat.validate(submission)
-    except Exception as exc:  # corrupt JSON, empty file, not a notebook at all
-        result.status, result.detail = NOT_A_NOTEBOOK, f"cannot read it as a notebook ({type(exc).__name__})"
+        submission = read_notebook(path)
+    except FileNotFoundError:
+        result.status, result.detail = NOT_A_NOTEBOOK, "no such file"
         return result
-    result.chapter = chapter_of_notebook(submission, path)
+    except (NotebookError, OSError) as exc:  # corrupt JSON, empty file, not a notebook at all
+        result.status, result.detail = NOT_A_NOTEBOOK, f"cannot read it as a notebook: {exc}"
+        return result
+    grade_submission(submission, release, result, timeout=timeout, compare=compare)
+    result.seconds = time.perf_counter() - start
+    return result
+
+
+def grade_submission(submission, release: dict, result: NotebookResult, *, timeout: float = 120.0,
+                     compare: bool = False) -> NotebookResult:
+    """Grade a notebook already read (``result`` names it and receives the outcome)."""
+    result.chapter = chapter_of_notebook(submission, Path(result.path))
     if result.chapter not in release:
         result.status = NO_RELEASE
         result.detail = f"no released exercise for chapter {result.chapter or '?'}"
@@ -285,48 +371,64 @@ def grade_notebook(path: str | Path, release: dict, *, timeout: float = 120.0,
         result.flags = review_flags(nb, ref)
     except Exception as exc:  # the review is advice: it must never cost a grade
         result.flags = [f"the code review failed ({type(exc).__name__}); read the notebook by hand"]
-    result.status, cells, result.detail = run_notebook(nb, timeout=timeout)
+    result.status, verdicts, errors, result.detail = run_graded(nb, timeout=timeout, compare=compare)
     if result.status == GRADED and (result.tampered or result.readded):
         result.status = TAMPERED_RESTORED
-    by_id = {c["cell_id"]: c for c in cells}
     graders = {cell["id"] for cell in ref.cells if grader_info(cell)}
-    result.learner_errors = [f"cell {c['cell_id']}: {exception_summary(c['message'])}"
-                             for c in cells if not c["passed"] and c["cell_id"] not in graders]
+    result.learner_errors = [f"cell {cid}: {error}" for cid, error in errors if cid not in graders]
     for cell in ref.cells:
         info = grader_info(cell)
         if not info:
             continue
         check, possible = info
-        outcome = by_id.get(cell["id"])
-        passed = bool(outcome and outcome["passed"])
-        message = "" if passed else (exception_summary(outcome["message"]) if outcome else "not run")
-        result.checks.append(CheckResult(check, cell["id"], possible if passed else 0, possible, message))
-    result.seconds = time.perf_counter() - start
+        verdict = verdicts.get(cell["id"])
+        passed = bool(verdict and verdict.passed)
+        message = verdict.message if verdict else "not run"
+        result.checks.append(CheckResult(check, cell["id"], possible if passed else 0, possible, message,
+                                         verdict.in_kernel if verdict else None))
     return result
 
 
-def grade_many(submissions: list[tuple[Path, str]], release: dict, *, timeout: float = 120.0,
-               jobs: int = 1, progress=None) -> list[NotebookResult]:
+def _grade_one(item):
+    """Grade one (path or (file name, notebook), learner) of a class; never raises (one bad
+    notebook must not stop the rest)."""
+    (source, learner), release, timeout, compare = item
+    name = source[0] if isinstance(source, tuple) else str(source)
+    try:
+        if isinstance(source, tuple):
+            return grade_submission(source[1], release, NotebookResult(name, learner), timeout=timeout,
+                                    compare=compare)
+        return grade_notebook(source, release, timeout=timeout, learner=learner, compare=compare)
+    except Exception as exc:  # a bug here must not lose the rest of the class
+        return NotebookResult(name, learner, status=RUN_ERROR, detail=f"{type(exc).__name__}: {exc}")
+
+
+def grade_many(submissions: list[tuple], release: dict, *, timeout: float = 120.0,
+               jobs: int = 1, progress=None, compare: bool = False) -> list[NotebookResult]:
     """Grade (path, learner) pairs, ``jobs`` at a time, each in its own kernel.
 
-    ``progress(done, total, result)`` is called as each one finishes. One submission's
-    failure (even an unexpected error in the grader itself) never stops the others.
+    A submission may also be given already read, as ((file name, notebook), learner).
+    With ``jobs`` > 1 each job is a worker process that grades one notebook after another
+    (a fresh kernel for each). ``progress(done, total, result)`` is called as each one
+    finishes. One submission's failure never stops the others. ``compare``: see
+    :func:`grade_notebook`.
     """
-    from concurrent.futures import ThreadPoolExecutor, as_completed
+    items = [(s, release, timeout, compare) for s in submissions]
+    results: list[NotebookResult | None] = [None] * len(items)
+    if jobs <= 1 or len(items) <= 1:
+        for i, item in enumerate(items):
+            results[i] = _grade_one(item)
+            if progress:
+                progress(i + 1, len(items), results[i])
+        return results
+    from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    def one(path, learner):
-        try:
-            return grade_notebook(path, release, timeout=timeout, learner=learner)
-        except Exception as exc:  # a bug here must not lose the rest of the class
-            return NotebookResult(str(path), learner, status=RUN_ERROR, detail=f"{type(exc).__name__}: {exc}")
-
-    results: list[NotebookResult | None] = [None] * len(submissions)
-    with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
-        futures = {pool.submit(one, path, learner): i for i, (path, learner) in enumerate(submissions)}
+    with ProcessPoolExecutor(max_workers=min(jobs, len(items)), initializer=registered_checks) as pool:
+        futures = {pool.submit(_grade_one, item): i for i, item in enumerate(items)}
         for done, future in enumerate(as_completed(futures), 1):
             results[futures[future]] = future.result()
             if progress:
-                progress(done, len(submissions), results[futures[future]])
+                progress(done, len(items), results[futures[future]])
     return results
 
 
@@ -427,4 +529,8 @@ def write_csv(results: list[NotebookResult], path: str | Path) -> None:
 def write_json(results: list[NotebookResult], path: str | Path) -> None:
     """Write the full results (every check's message included) as JSON."""
     data = [dict(asdict(r), points=r.points, possible=r.possible, hint=r.hint) for r in results]
+    for record in data:
+        for c in record["checks"]:
+            if c["in_kernel"] is None:
+                del c["in_kernel"]
     Path(path).write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")

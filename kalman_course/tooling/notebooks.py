@@ -15,10 +15,67 @@ import json
 import time
 from pathlib import Path
 
-import nbformat
-
 #: The nbformat minor version every stored notebook is written with (4.5 has cell ids).
 NBFORMAT_MINOR = 5
+
+
+class NotebookError(ValueError):
+    """A file is not a readable Jupyter notebook (the message says why)."""
+
+
+class Node(dict):
+    """A notebook's JSON object with attribute access (``nb.cells``, ``cell.source``), as
+    nbformat's ``NotebookNode`` but without importing nbformat (a second, for its schema)."""
+
+    def __getattr__(self, key):
+        try:
+            return self[key]
+        except KeyError:
+            raise AttributeError(key) from None
+
+    def __setattr__(self, key, value):
+        self[key] = value
+
+
+def read_notebook(path: str | Path) -> Node:
+    """Read a version-4 notebook for grading: JSON, checked for the structure grading uses.
+
+    Multi-line sources and output texts stored as lists of lines are joined, as nbformat
+    does. Raises ``FileNotFoundError`` for a missing file and :class:`NotebookError` for
+    anything that is not a version-4 notebook (empty, corrupt JSON, no cell list, ...).
+    """
+    try:
+        nb = json.loads(Path(path).read_text(encoding="utf-8"), object_hook=Node)
+    except UnicodeDecodeError:
+        raise NotebookError("not UTF-8 text") from None
+    except json.JSONDecodeError as exc:
+        raise NotebookError(f"not JSON ({exc.msg} at line {exc.lineno})") from None
+    if not isinstance(nb, Node) or nb.get("nbformat") != 4:
+        raise NotebookError("not a version-4 notebook (no \"nbformat\": 4)")
+    if not isinstance(nb.get("cells"), list) or not isinstance(nb.get("metadata", {}), dict):
+        raise NotebookError("its cells are not a list")
+    nb.setdefault("metadata", Node())
+    for i, cell in enumerate(nb.cells):
+        if not isinstance(cell, Node) or cell.get("cell_type") not in ("code", "markdown", "raw"):
+            raise NotebookError(f"cell {i} is not a code, markdown or raw cell")
+        cell["source"] = _joined(cell.get("source", ""), f"cell {i}'s source")
+        if not isinstance(cell.setdefault("metadata", Node()), dict):
+            raise NotebookError(f"cell {i}'s metadata is not an object")
+        if cell.cell_type == "code":
+            if not isinstance(cell.setdefault("outputs", []), list):
+                raise NotebookError(f"cell {i}'s outputs are not a list")
+            for out in cell.outputs:
+                if isinstance(out, Node) and "text" in out:
+                    out["text"] = _joined(out["text"], f"an output of cell {i}")
+    return nb
+
+
+def _joined(text, what: str) -> str:
+    if isinstance(text, list) and all(isinstance(line, str) for line in text):
+        return "".join(text)
+    if not isinstance(text, str):
+        raise NotebookError(f"{what} is not text")
+    return text
 
 
 def stable_cell_id(index: int, source: str) -> str:
@@ -27,7 +84,7 @@ def stable_cell_id(index: int, source: str) -> str:
     return f"c{index:02d}-{digest}"
 
 
-def normalise(nb: nbformat.NotebookNode) -> nbformat.NotebookNode:
+def normalise(nb):
     """Return a copy of ``nb`` without run-to-run noise.
 
     Removes per-cell execution timing, the kernel's Python patch version and widget state,
@@ -72,17 +129,17 @@ def _coalesce_streams(outputs: list) -> list:
     return merged
 
 
-def notebook_text(nb: nbformat.NotebookNode) -> str:
+def notebook_text(nb) -> str:
     """Return ``nb`` as JSON in the canonical layout (sorted keys, one-space indent, final newline)."""
     return json.dumps(nb, indent=1, sort_keys=True, ensure_ascii=False) + "\n"
 
 
-def write_notebook(nb: nbformat.NotebookNode, path: Path) -> None:
+def write_notebook(nb, path: Path) -> None:
     """Write ``nb`` to ``path`` in the canonical layout."""
     Path(path).write_text(notebook_text(nb), encoding="utf-8")
 
 
-def run_cells(nb: nbformat.NotebookNode, folder: Path, *, timeout: int = 600,
+def run_cells(nb, folder: Path, *, timeout: int = 600,
               kernel_name: str = "python3") -> float:
     """Run every cell of ``nb`` (in place, in memory) in a new kernel started in ``folder``.
 
@@ -112,6 +169,8 @@ def execute_notebook(path: str | Path, *, timeout: int = 600, kernel_name: str =
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"notebook not found: {path}")
+    import nbformat
+
     nb = nbformat.read(path, as_version=4)
     elapsed = run_cells(nb, path.parent, timeout=timeout, kernel_name=kernel_name)
     write_notebook(normalise(nb), path)

@@ -1,0 +1,187 @@
+"""One learner notebook's own Jupyter kernel, driven by the grading process.
+
+The kernel runs the learner's cells one by one, as JupyterLab would, and answers the
+checks' calls of learner functions (:class:`kalman_course.checks.remote.Session`): each
+call is a request file that the kernel's agent reads and answers with a file of plain data.
+A cell that runs past its time is interrupted; a kernel that dies is noticed within
+:data:`POLL` seconds.
+"""
+
+from __future__ import annotations
+
+import os
+import queue
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+
+from jupyter_client.kernelspec import KernelSpec, KernelSpecManager
+from jupyter_client.manager import KernelManager
+
+from kalman_course.checks.plain_data import Opaque, Raised, encode
+from kalman_course.checks.remote import KernelLost, Session
+
+#: Seconds between two looks at whether the kernel is still alive while waiting for it.
+POLL = 0.25
+#: Seconds an interrupted cell gets to stop before the kernel is given up.
+INTERRUPT_GRACE = 5.0
+#: Statuses a lost kernel reports (the same words as the gradebook's).
+TIMED_OUT, KERNEL_DIED = "timed out", "kernel died"
+
+_AGENT_CALL = ("__import__('kalman_course.checks.kernel_agent', fromlist=['serve'])"
+               ".serve(globals(), {request!r}, {answer!r})")
+
+
+class _ThisPython(KernelSpecManager):
+    """Kernels run the Python that runs the grader (as ``--nbval-current-env`` did)."""
+
+    def get_kernel_spec(self, kernel_name):
+        return KernelSpec(argv=[sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}",
+                                "--log-level=ERROR"],  # no start-up notices on the grader's stderr
+                          display_name="Python 3", language="python", name=kernel_name)
+
+
+@dataclass
+class CellOutcome:
+    """What running one cell gave: ``status`` is "ok", "error" or TIMED_OUT."""
+
+    status: str
+    error: str = ""      # "Name: message" of the exception, if any
+    stdout: str = ""     # only when asked for
+
+
+class KernelSession(Session):
+    """A fresh kernel for one notebook.
+
+    Parameters
+    ----------
+    cwd : str
+        The kernel's working folder.
+    timeout : float
+        Seconds each cell (and each check, over all its calls) may take.
+    """
+
+    def __init__(self, cwd: str, timeout: float):
+        super().__init__()
+        self.timeout = float(timeout)
+        self.deadline = None  # set by the grader for the check that is running
+        self.timed_out = False
+        self._files = tempfile.mkdtemp(prefix="agent-", dir=cwd)
+        self._count = 0
+        env = dict(os.environ)
+        env.pop("MPLBACKEND", None)  # the kernel picks its inline backend, as in JupyterLab
+        env["PYDEVD_DISABLE_FILE_VALIDATION"] = "1"  # no debugger warning on stderr
+        self.km = KernelManager(kernel_spec_manager=_ThisPython(), kernel_name="python3")
+        self.km.start_kernel(cwd=cwd, env=env)
+        self.kc = None
+
+    def wait_until_ready(self, timeout: float = 60.0) -> None:
+        """Block until the kernel answers (start it first; overlap other work with this)."""
+        self.kc = self.km.client()
+        self.kc.start_channels()
+        try:
+            self.kc.wait_for_ready(timeout=timeout)
+        except RuntimeError as exc:
+            raise KernelLost(KERNEL_DIED, f"the kernel did not start ({exc})") from None
+
+    def close(self) -> None:
+        """Stop the kernel and remove the request files."""
+        if self.kc is not None:
+            self.kc.stop_channels()
+        try:
+            self.km.shutdown_kernel(now=True)
+        except Exception:  # already dead
+            pass
+        for name in os.listdir(self._files):
+            os.remove(os.path.join(self._files, name))
+        os.rmdir(self._files)
+
+    # -- cells -------------------------------------------------------------------------
+
+    def run_cell(self, source: str, *, capture: bool = False, silent: bool = False,
+                 timeout: float | None = None) -> CellOutcome:
+        """Run ``source`` in the kernel and wait for it (``capture``: also collect stdout)."""
+        msg_id = self.kc.execute(source, silent=silent, store_history=not silent, allow_stdin=False,
+                                 stop_on_error=False)
+        reply = self._reply(msg_id, self.timeout if timeout is None else timeout)
+        stdout = self._stdout(msg_id) if capture else ""
+        self._drain()
+        if reply is None:
+            return CellOutcome(TIMED_OUT, "the cell ran out of time", stdout)
+        content = reply["content"]
+        if content.get("status") == "ok":
+            return CellOutcome("ok", "", stdout)
+        return CellOutcome("error", f"{content.get('ename', 'Error')}: {content.get('evalue', '')}", stdout)
+
+    def _reply(self, msg_id: str, timeout: float):
+        """The execute reply to ``msg_id``, or None after interrupting a cell that ran out of time."""
+        end = time.monotonic() + timeout
+        interrupted = False
+        while True:
+            try:
+                msg = self.kc.get_shell_msg(timeout=POLL)
+            except queue.Empty:
+                if not self.km.is_alive():
+                    raise KernelLost(KERNEL_DIED, "the kernel died (os._exit, a crash, or out of memory)")
+                if time.monotonic() > end:
+                    if interrupted:
+                        raise KernelLost(TIMED_OUT, f"a cell ran longer than {timeout:g} s and did not stop")
+                    self.km.interrupt_kernel()
+                    self.timed_out = interrupted = True
+                    end = time.monotonic() + INTERRUPT_GRACE
+                continue
+            if msg["parent_header"].get("msg_id") == msg_id:
+                return None if interrupted else msg
+
+    def _stdout(self, msg_id: str) -> str:
+        """Everything the cell ``msg_id`` printed to stdout (read until the kernel is idle)."""
+        text = []
+        end = time.monotonic() + 10.0
+        while time.monotonic() < end:
+            try:
+                msg = self.kc.get_iopub_msg(timeout=POLL)
+            except queue.Empty:
+                continue
+            if msg["parent_header"].get("msg_id") != msg_id:
+                continue
+            if msg["msg_type"] == "stream" and msg["content"].get("name") == "stdout":
+                text.append(msg["content"]["text"])
+            if msg["msg_type"] == "status" and msg["content"].get("execution_state") == "idle":
+                break
+        return "".join(text)
+
+    def _drain(self) -> None:
+        """Drop the published messages nobody asked for (outputs, status)."""
+        while True:
+            try:
+                self.kc.get_iopub_msg(timeout=0)
+            except queue.Empty:
+                return
+
+    # -- the checks' calls -------------------------------------------------------------
+
+    def exchange(self, request: str) -> str:
+        self._count += 1
+        req = os.path.join(self._files, f"request-{self._count}.json")
+        ans = os.path.join(self._files, f"answer-{self._count}.json")
+        with open(req, "w", encoding="utf-8") as fh:
+            fh.write(request)
+        left = self.timeout if self.deadline is None else max(self.deadline - time.monotonic(), 0.5)
+        outcome = self.run_cell(_AGENT_CALL.format(request=req, answer=ans), silent=True, timeout=left)
+        try:
+            if outcome.status == TIMED_OUT:
+                why = f"your function ran longer than the {self.timeout:g} s a check may take"
+                return encode({"raised": Raised("TimeoutError", why)}, towards_kernel=False)
+            if not os.path.exists(ans):
+                why = f"the notebook did not answer the grader ({outcome.error or 'no answer'})"
+                return encode({"raised": Raised("RuntimeError", why)}, towards_kernel=False)
+            if os.path.getsize(ans) > self.MAX_ANSWER:
+                too_big = Opaque(f"answer of {os.path.getsize(ans)} bytes")
+                return encode({"result": too_big}, towards_kernel=False)
+            with open(ans, encoding="utf-8") as fh:
+                return fh.read()
+        finally:
+            for path in (req, ans):
+                if os.path.exists(path):
+                    os.remove(path)
