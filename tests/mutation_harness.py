@@ -7,7 +7,10 @@ learner mistake); an *equivalent* is an edit that stays correct (another way to 
 same thing). To try one, the namespace is copied, the edited cell is run again in the copy and
 so are the function and class definitions of every later cell (so a function that calls the
 mutated one sees the mutant; the later cells' demo code is not run), and the grader cell's
-check is called on the object the grader cell passes.
+check is called on the object the grader cell passes, twice: directly, as the grader
+cell does in the learner's kernel, and through the plain-data protocol that
+``kalman-course grade`` uses from outside the kernel; the two verdicts and messages must be
+identical.
 
 The catalogues are ``tests/mutants/chNN.py``; each holds ``MUTANTS``, ``EQUIVALENTS`` and
 ``EQUIVALENT_MUTANTS`` (edits that cannot change any result, each with the reason).
@@ -31,6 +34,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import nbformat  # noqa: E402
 
 from kalman_course import checks  # noqa: E402
+from kalman_course.checks.remote import LearnerFunction, LocalSession  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 SOLUTIONS = ROOT / "solutions"
@@ -141,15 +145,25 @@ class Solution:
                 self._redefine(later.id, later.source, namespace)
         call = self.grader_call[edit.check]
         argument = call[call.index("(") + 1:call.rindex(")")]
-        learner_object = eval(argument, namespace)
-        try:
-            with contextlib.redirect_stdout(io.StringIO()):
-                getattr(checks, edit.check)(learner_object)
-        except checks.CheckFailed as exc:
-            return Outcome(False, str(exc))
-        finally:
-            plt.close("all")
-        return Outcome(True, "")
+        in_kernel = _verdict(getattr(checks, edit.check), eval(argument, namespace))
+        # the same check as `kalman-course grade` runs it: here, on the learner's functions
+        # reached through the plain-data protocol (its "kernel" is this namespace)
+        from_outside = _verdict(getattr(checks, edit.check), LearnerFunction(LocalSession(namespace), argument))
+        if from_outside != in_kernel:
+            raise AssertionError(f"{edit.check} judges {edit.mistake or edit.reason!r} differently from outside "
+                                 f"the kernel: inside {in_kernel}, outside {from_outside}")
+        return in_kernel
+
+
+def _verdict(check, learner_object) -> Outcome:
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):
+            check(learner_object)
+    except checks.CheckFailed as exc:
+        return Outcome(False, str(exc))
+    finally:
+        plt.close("all")
+    return Outcome(True, "")
 
 
 @functools.cache

@@ -94,11 +94,12 @@ CASES = {
     "grader_deleted": (_delete("grader-histogram_update"), grading.TAMPERED_RESTORED, FULL),
     "cell_id_changed": (_rename("grader-histogram_predict", "my-cell"), grading.TAMPERED_RESTORED, FULL),
     "imports_reference": (_replace("update", "from kalman_course.filters.bayes import histogram_update"), grading.GRADED, FULL),
-    # the patch works inside the kernel: the wrong (unnormalised) update passes its patched check
-    # and only the filter check catches it; the review flag is the defence
+    # the patch changes only the kernel's checks (its grader cell prints "passed" there); the
+    # grade comes from the grading process, where the wrong (unnormalised) update fails its
+    # check and the filter check with it; the review flags the patch as well
     "patches_checks": (lambda nb: _insert_after(
         _edit("update", "unnormalised / unnormalised.sum()", "unnormalised")(nb), "setup",
-        "checks.histogram_update = lambda fn: print('histogram_update: passed')"), grading.GRADED, FULL - 2),
+        "checks.histogram_update = lambda fn: print('histogram_update: passed')"), grading.GRADED, FULL - 4),
 }
 RAW = {"corrupt_json": "{ not json", "empty": ""}
 
@@ -146,7 +147,7 @@ def test_unreadable_submissions(graded, name):
 
 def test_restorations_are_reported_and_nothing_false_is_said(graded):
     results = graded[1]
-    assert results["grader_prints_success"]["tampered"] == ["grader-door_likelihood"]
+    assert results["grader_prints_success"]["tampered"] == ["cell grader-door_likelihood: source edited"]
     assert results["grader_deleted"]["readded"] == ["grader-histogram_update"]
     assert results["cell_id_changed"]["readded"] == ["grader-histogram_predict"]
     assert results["imports_reference"]["tampered"] == [] and results["imports_reference"]["readded"] == []

@@ -1,6 +1,7 @@
 """Tests for kalman_course.tooling.review: what gets flagged, and that honest work never is."""
 
 import copy
+import functools
 
 import nbformat
 import pytest
@@ -14,14 +15,19 @@ from conftest import ROOT
 CHAPTERS = sorted(p.name for p in (ROOT / "exercises").glob("[0-9]*.ipynb"))
 
 
+@functools.lru_cache(maxsize=None)
+def _read(folder, chapter):
+    return nbformat.read(ROOT / folder / chapter, as_version=4)
+
+
 def _release(chapter):
-    return nbformat.read(ROOT / "exercises" / chapter, as_version=4)
+    return copy.deepcopy(_read("exercises", chapter))
 
 
 def _solved(chapter):
     """The released exercise with the solution's code in every non-grader cell."""
     exercise = _release(chapter)
-    solution = authoring.render(nbformat.read(ROOT / "solutions" / chapter, as_version=4), set())
+    solution = authoring.render(_read("solutions", chapter), set())
     sources = {c["id"]: c.source for c in solution.cells}
     for cell in exercise.cells:
         if authoring.grader_info(cell) is None and cell["id"] in sources:
@@ -35,7 +41,7 @@ def test_honest_notebooks_are_not_flagged(chapter):
     release = _release(chapter)
     assert review_flags(release, release) == []
     assert review_flags(_solved(chapter), release) == []
-    assert review_flags(nbformat.read(ROOT / "solutions" / chapter, as_version=4), release) == []
+    assert review_flags(_read("solutions", chapter), release) == []
 
 
 CH01 = "01_bayes_rule.ipynb"
@@ -108,3 +114,279 @@ def test_grader_cells_are_skipped_and_nothing_is_modified():
     before = copy.deepcopy(nb)
     assert review_flags(nb, _release(CH01)) == []
     assert nb == before
+
+
+# --- what learners used to forge grades (issue 13), each in an extra cell of a solved chapter 01 ---
+
+def _extra_flags(source):
+    return review_flags(_with_extra_cell(source), _release(CH01))
+
+
+FORGERIES = {
+    # 1. rebinding a name the release imports, writing into an imported namespace
+    "rebind-by-assignment": ("class Fake:\n    def __getattr__(self, name):\n"
+                             "        return lambda fn: print(name + ': passed')\nchecks = Fake()",
+                             "rebinds `checks`, a name the exercise imports"),
+    "rebind-by-def": ("def np():\n    pass", "rebinds `np`, a name the exercise imports"),
+    "rebind-by-class": ("class plt:\n    pass", "rebinds `plt`, a name the exercise imports"),
+    "rebind-by-augmented-assignment": ("CORRIDOR += 0", "rebinds `CORRIDOR`, a name the exercise imports"),
+    "rebind-by-annotated-assignment": ("checks: object = None", "rebinds `checks`, a name the exercise imports"),
+    "rebind-by-for": ("for checks in [None]:\n    pass", "rebinds `checks`, a name the exercise imports"),
+    "rebind-by-with": ("import contextlib\nwith contextlib.nullcontext() as np:\n    pass",
+                       "rebinds `np`, a name the exercise imports"),
+    "rebind-by-walrus-in-comprehension": ("[(checks := f) for f in [print]]",
+                                          "rebinds `checks`, a name the exercise imports"),
+    "rebind-by-except": ("try:\n    pass\nexcept Exception as np:\n    pass", "rebinds `np`, a name the exercise imports"),
+    "rebind-in-if-block": ("if True:\n    corridor_scenario = print",
+                           "rebinds `corridor_scenario`, a name the exercise imports"),
+    "rebind-by-import": ("from kalman_course import plotting as checks",
+                         "rebinds `checks`, a name the exercise imports, to `kalman_course.plotting`"),
+    "delete": ("del checks", "deletes `checks`, a name the exercise imports"),
+    "global-declaration": ("def patch():\n    global checks\n    checks = None",
+                           "declares `global checks`, so that a function can rebind a name the exercise imports"),
+    "vars-of-module-written": ("vars(checks)['histogram_update'] = lambda fn: print('histogram_update: passed')",
+                               "writes into the namespace of `vars(checks)` (`kalman_course.checks`), "
+                               "changing something imported"),
+    "module-dict-written": ("np.__dict__['allclose'] = lambda *a, **k: True",
+                            "writes into the namespace of `np.__dict__` (`numpy`), changing something imported"),
+    "vars-of-module-updated": ("import numpy\nvars(numpy).update(allclose=lambda *a, **k: True)",
+                               "writes into the namespace of `vars(numpy)` (`numpy`), changing something imported"),
+    "setattr-on-module": ("setattr(np, 'allclose', lambda *a, **k: True)",
+                          "calls `setattr` on `np` (`numpy`), changing something imported"),
+    "object-setattr-on-module": ("object.__setattr__(np, 'isclose', print)",
+                                 "calls `__setattr__` on `np` (`numpy`), changing something imported"),
+    # 2. running or building code the review cannot read
+    "exec": ('exec("checks.histogram_update = print")',
+             "uses `exec` (`builtins.exec`), which runs code the review cannot read"),
+    "exec-through-an-alias": ("run = exec\nrun('x = 1')", "uses `run` (`builtins.exec`), which runs code the review cannot read"),
+    "exec-through-builtins": ("__builtins__.exec('x = 1')",
+                              "uses `__builtins__.exec` (`builtins.exec`), which runs code the review cannot read"),
+    "eval": ('eval("print")', "uses `eval` (`builtins.eval`), which runs code the review cannot read"),
+    "compile": ('code = compile("x = 1", "<learner>", "exec")',
+                "uses `compile` (`builtins.compile`), which runs code the review cannot read"),
+    "dunder-import": ('bayes = __import__("kalman_course.filters.bayes")',
+                      "uses `__import__` (`builtins.__import__`), which imports a module named at run time"),
+    "runpy": ("import runpy", "imports `runpy`, which runs code the review cannot read"),
+    "function-type": ("import types\nf = types.FunctionType(sensor_likelihood.__code__, {})",
+                      "uses `types.FunctionType`, which builds a function from a code object"),
+    "code-type": ("from types import CodeType\nc = CodeType", "imports `types.CodeType`, which builds a function from a code object"),
+    "code-assigned": ("def mine():\n    pass\nmine.__code__ = sensor_likelihood.__code__",
+                      "assigns to `mine.__code__`, swapping the internals of an object"),
+    "class-assigned": ("x = np.float64(1.0)\nx.__class__ = float", "assigns to `x.__class__`, swapping the internals of an object"),
+    "globals-of-a-function": ("(lambda: 0).__globals__['checks'] = None",
+                              "uses `(lambda: 0).__globals__`, which reaches into the internals of functions and classes"),
+    "pickle-loads": ("import pickle\nf = pickle.loads(b'')", "uses `pickle.loads`, which loads objects or code from bytes"),
+    "marshal-loads": ("import marshal\nf = marshal.loads(b'')", "uses `marshal.loads`, which loads objects or code from bytes"),
+    # 3. reading source code
+    "getsource": ("import inspect\nfrom kalman_course.filters import bayes\nexec(inspect.getsource(bayes))",
+                  "uses `inspect.getsource`, which reads the source code of other modules"),
+    "getsourcelines-aliased": ("from inspect import getsourcelines as lines\nlines(print)",
+                               "uses `lines` (`inspect.getsourcelines`), which reads the source code of other modules"),
+    "getfile": ("import inspect\npath = inspect.getfile(checks)", "uses `inspect.getfile`, which reads the source code of other modules"),
+    "package-file": ("import kalman_course, os\n"
+                     "text = open(os.path.join(os.path.dirname(kalman_course.__file__), 'filters', 'bayes.py')).read()",
+                     "reads `kalman_course.__file__`, which locates the source files of the course's code"),
+    "solutions-path": ("text = open('../solutions/01_bayes_rule.ipynb').read()",
+                       "names a path under `solutions/` ('../solutions/01_bayes_rule.ipynb'), where the reference code is"),
+    "solutions-run-by-a-magic": ("%run ../solutions/01_bayes_rule.ipynb",
+                                 "names a path under `solutions/` ('../solutions/01_bayes_rule.ipynb'), "
+                                 "where the reference code is"),
+    "package-path": ("text = open('/venv/kalman_course/filters/bayes.py').read()",
+                     "names a path inside the `kalman_course` package ('/venv/kalman_course/filters/bayes.py'), "
+                     "where the reference code is"),
+    # 4. IPython hooks
+    "shell-in-a-variable": ("ip = get_ipython()",
+                            "gets the IPython shell (`get_ipython()`) outside a magic, which reaches into the IPython shell or kernel"),
+    "set-custom-exc": ("ip = get_ipython()\nip.set_custom_exc((AssertionError,), lambda *a, **k: print('passed'))",
+                       "uses `ip.set_custom_exc` (`get_ipython().set_custom_exc`), which reaches into the IPython shell or kernel"),
+    "input-transformer": ("get_ipython().input_transformers_cleanup.append(lambda lines: lines)",
+                          "uses `get_ipython().input_transformers_cleanup.append`, which reaches into the IPython shell or kernel"),
+    "ast-transformer": ("import IPython\nIPython.get_ipython().ast_transformers.append(None)",
+                        "uses `IPython.get_ipython().ast_transformers.append` (`get_ipython().ast_transformers.append`), "
+                        "which reaches into the IPython shell or kernel"),
+    "events": ("get_ipython().events.register('post_run_cell', print)",
+               "uses `get_ipython().events.register`, which reaches into the IPython shell or kernel"),
+    "register-magic": ("get_ipython().register_magic_function(print)",
+                       "uses `get_ipython().register_magic_function`, which reaches into the IPython shell or kernel"),
+    "display-formatter": ("get_ipython().display_formatter.formatters.clear()",
+                          "uses `get_ipython().display_formatter.formatters.clear`, which reaches into the IPython shell or kernel"),
+    "showtraceback-replaced": ("get_ipython().showtraceback = lambda *a, **k: None",
+                               "uses `get_ipython().showtraceback`, which reaches into the IPython shell or kernel"),
+    "run-cell-overridden": ("get_ipython().run_cell = print", "uses `get_ipython().run_cell`, which reaches into the IPython shell or kernel"),
+    "user-ns": ("get_ipython().user_ns['checks'] = None", "uses `get_ipython().user_ns`, which reaches into the IPython shell or kernel"),
+    "shell-class": ("from IPython.core.interactiveshell import InteractiveShell\nshell = InteractiveShell.instance()",
+                    "imports `IPython.core.interactiveshell.InteractiveShell`, which reaches into the IPython shell or kernel"),
+    "ipython-flag": ("running_in_ipython = __IPYTHON__", "uses `__IPYTHON__`, which reaches into the IPython shell or kernel"),
+    # 5. frames and interpreter hooks
+    "getframe-in-the-learner-function": ("import sys\ndef sensor_likelihood(world, z, p_correct):\n"
+                                         "    caller = sys._getframe(1)\n    return world",
+                                         "uses `sys._getframe`, which reaches into running code's frames and objects"),
+    "getframe-imported-under-another-name": ("from sys import _getframe as g\nframe = g()",
+                                             "uses `g` (`sys._getframe`), which reaches into running code's frames and objects"),
+    "settrace-through-an-alias": ("import sys\ns = sys\ns.settrace(None)",
+                                  "uses `s.settrace` (`sys.settrace`), which reaches into running code's frames and objects"),
+    "settrace-through-a-default": ("import sys\ndef install(s=sys):\n    s.settrace(None)",
+                                   "uses `s.settrace` (`sys.settrace`), which reaches into running code's frames and objects"),
+    "setprofile": ("import sys\nsys.setprofile(None)", "uses `sys.setprofile`, which reaches into running code's frames and objects"),
+    "threading-settrace": ("import threading\nthreading.settrace(print)",
+                           "uses `threading.settrace`, which reaches into running code's frames and objects"),
+    "currentframe": ("import inspect\nframe = inspect.currentframe()",
+                     "uses `inspect.currentframe`, which reaches into running code's frames and objects"),
+    "stack": ("import inspect\nframes = inspect.stack()", "uses `inspect.stack`, which reaches into running code's frames and objects"),
+    "getouterframes": ("from inspect import getouterframes\ngetouterframes(None)",
+                       "imports `inspect.getouterframes`, which reaches into running code's frames and objects"),
+    "f-back-f-locals": ("def spy(frame):\n    return frame.f_back.f_locals",
+                        "uses `frame.f_back.f_locals`, which reaches into running code's frames and objects"),
+    "f-globals": ("def spy(frame):\n    frame.f_globals['checks'] = None",
+                  "uses `frame.f_globals`, which reaches into running code's frames and objects"),
+    "tb-frame": ("try:\n    1 / 0\nexcept ZeroDivisionError as error:\n    frame = error.__traceback__.tb_frame",
+                 "uses `error.__traceback__.tb_frame`, which reaches into running code's frames and objects"),
+    "gc-get-referrers": ("import gc\nholders = gc.get_referrers(np.allclose)",
+                         "uses `gc.get_referrers`, which reaches into running code's frames and objects"),
+    "gc-get-objects": ("import gc\nobjects = gc.get_objects()", "uses `gc.get_objects`, which reaches into running code's frames and objects"),
+    "ctypes": ("import ctypes", "imports `ctypes`, which reaches into running code's frames and objects"),
+    "meta-path": ("import sys\nsys.meta_path.insert(0, None)", "uses `sys.meta_path.insert`, which hooks into the interpreter"),
+    "path-hooks": ("import sys\nsys.path_hooks.append(print)", "uses `sys.path_hooks.append`, which hooks into the interpreter"),
+    "audit-hook": ("import sys\nsys.addaudithook(print)", "uses `sys.addaudithook`, which hooks into the interpreter"),
+    "sys-reexported-by-os": ("import os\nos.sys.settrace(None)", "uses `os.sys.settrace`, which reaches into running code's frames and objects"),
+    # 6. patching numpy, builtins, classes of imported modules
+    "np-allclose": ("np.allclose = lambda *a, **k: True", "assigns to `np.allclose` (`numpy.allclose`), patching something imported"),
+    "numpy-aliased": ("import numpy as n\nn.isclose = lambda *a, **k: True",
+                      "assigns to `n.isclose` (`numpy.isclose`), patching something imported"),
+    "numpy-testing": ("import numpy.testing\nnumpy.testing.assert_allclose = print",
+                      "assigns to `numpy.testing.assert_allclose`, patching something imported"),
+    "np-linalg": ("np.linalg.solve = print", "assigns to `np.linalg.solve` (`numpy.linalg.solve`), patching something imported"),
+    "ndarray-eq": ("np.ndarray.__eq__ = lambda a, b: True",
+                   "assigns to `np.ndarray.__eq__` (`numpy.ndarray.__eq__`), patching something imported"),
+    "np-deleted-attribute": ("del np.isclose", "deletes `np.isclose` (`numpy.isclose`), patching something imported"),
+    "builtins-print": ("import builtins\nbuiltins.print = lambda *a, **k: None", "assigns to `builtins.print`, patching a builtin"),
+    "dunder-builtins-attribute": ("__builtins__.len = lambda x: 0",
+                                  "assigns to `__builtins__.len` (`builtins.len`), patching a builtin"),
+    "class-of-an-imported-module": ("from collections import OrderedDict\nOrderedDict.__eq__ = lambda a, b: True",
+                                    "assigns to `OrderedDict.__eq__` (`collections.OrderedDict.__eq__`), patching something imported"),
+    "main-module": ("import __main__\n__main__.checks = None", "assigns to `__main__.checks`, patching something imported"),
+    # 7. star-imports, getattr on course modules, globals() writes
+    "star-import": ("from kalman_course.filters.bayes import *",
+                    "star-imports `kalman_course.filters.bayes` (`from kalman_course.filters.bayes import *`), "
+                    "which the exercise does not"),
+    "getattr-of-the-function-to-write": ("import kalman_course.filters.bayes as kb\n"
+                                         "histogram_update = getattr(kb, 'histogram_update')",
+                                         "gets `histogram_update` by name (`getattr`) instead of writing it"),
+    "getattr-on-a-course-module": ("import kalman_course.filters.bayes as kb\nname = 'histogram' + '_update'\nf = getattr(kb, name)",
+                                   "calls `getattr` on `kb` (`kalman_course.filters.bayes`), a course module"),
+    "getattr-on-a-course-module-imported-at-run-time": (
+        "import importlib\nf = getattr(importlib.import_module('kalman_course.filters.bayes'), 'histogram' + '_update')",
+        "calls `getattr` on `importlib.import_module('kalman_course.filters.bayes')` "
+        "(`kalman_course.filters.bayes`), a course module"),
+    "getattr-on-a-module-named-at-run-time": ("import importlib\nm = importlib.import_module('kalman' + '_course')\nf = getattr(m, 'x')",
+                                              "calls `getattr` on a module imported at run time"),
+    "getattr-on-sys-with-a-computed-name": ("import sys\nspy = getattr(sys, '_get' + 'frame')",
+                                            "calls `getattr` on `sys` with a computed name"),
+    "getattr-of-a-frame-function": ("import sys\nspy = getattr(sys, '_getframe')",
+                                    "uses `getattr(sys, '_getframe')` (`sys._getframe`), "
+                                    "which reaches into running code's frames and objects"),
+    "attrgetter": ("import operator\nfrom kalman_course.filters import bayes\nf = operator.attrgetter('histogram_update')(bayes)",
+                   "gets `histogram_update` by name (`operator.attrgetter`) instead of writing it"),
+    "attrgetter-on-a-course-module": ("import operator\nfrom kalman_course.filters import bayes\n"
+                                      "f = operator.attrgetter('x')(bayes)",
+                                      "applies `operator.attrgetter('x')` to a course module"),
+    "vars-of-a-course-module-read": ("from kalman_course.filters import bayes\nf = vars(bayes)['histogram_update']",
+                                     "reads the namespace of a course module (`vars(bayes)`)"),
+    "globals-binds-the-function": ("from kalman_course.filters import bayes\n"
+                                   "globals()['histogram_update'] = bayes.histogram_update",
+                                   "binds `histogram_update` through `globals()` instead of writing it"),
+    "globals-update-rebinds": ("globals().update({'checks': None})",
+                               "rebinds `checks`, a name the exercise imports, through `globals()`"),
+    "globals-computed-name": ("name = 'histogram' + '_update'\nglobals()[name] = print",
+                              "writes into `globals()` under a computed name"),
+    "locals-binds-the-function": ("locals().setdefault('histogram_predict', print)",
+                                  "binds `histogram_predict` through `locals()` instead of writing it"),
+    "vars-binds-the-function": ("vars()['sensor_likelihood'] = print",
+                                "binds `sensor_likelihood` through `vars()` instead of writing it"),
+    # the Python that magics run is read as well
+    "hidden-in-capture": ("%%capture\nchecks = None", "rebinds `checks`, a name the exercise imports"),
+    "hidden-in-timeit": ("%timeit -n1 -r1 np.allclose = print",
+                         "assigns to `np.allclose` (`numpy.allclose`), patching something imported"),
+    "hidden-in-writefile": ("%%writefile helper.py\nimport sys\nsys.settrace(None)",
+                            "uses `sys.settrace`, which reaches into running code's frames and objects"),
+}
+
+
+@pytest.mark.parametrize("name", FORGERIES)
+def test_forgery_techniques_are_flagged(name):
+    source, expected = FORGERIES[name]
+    assert f"cell extra: {expected}" in _extra_flags(source)
+
+
+HONEST = {
+    "allclose-called": "ok = np.allclose(np.ones(2), np.ones(2)) and np.isclose(1.0, 1.0)",
+    "getattr-on-an-array": "a = np.zeros((2, 3))\nprint(getattr(a, 'shape'), getattr(a, 'ndim', 0))",
+    "loop-variable": "for k in range(3):\n    print(k)",
+    "own-helper-named-like-numpy": "def allclose(a, b):\n    return np.all(np.abs(a - b) < 1e-9)\nallclose(np.ones(1), np.ones(1))",
+    "own-function-named-like-a-builtin": "def compile(parts):\n    return list(parts)\ncompile('ab')",
+    "plots": ("fig, ax = plt.subplots()\nax.plot([1, 2])\nax.set_title('belief')\n"
+              "plt.rcParams['figure.figsize'] = (8, 4)\nplt.show()"),
+    "local-shadowing": "def f():\n    np = 3\n    checks = 4\n    return np + checks",
+    "parameter-named-like-a-module": "def scale(np, plt):\n    np.factor = 2\n    plt.title = 'x'\n    return np",
+    "comprehension-variable-named-like-a-module": "squares = [np * np for np in range(3)]",
+    "lambda-parameter-named-like-a-module": "total = lambda np: np.sum()",
+    "local-import-in-a-function": "def f():\n    import numpy as np\n    return np.eye(2)",
+    "magics": "%matplotlib inline\n%load_ext autoreload\n%autoreload 2\n!ls\nfiles = !ls",
+    "timeit-of-honest-code": "%timeit -n1 -r1 np.allclose(np.ones(2), np.ones(2))",
+    "time-of-honest-code": "%%time\nx = np.linalg.solve(np.eye(2), np.ones(2))",
+    "help": "help(np.allclose)\nnp.allclose?",
+    "reimports": "import numpy as np\nimport matplotlib.pyplot as plt\nfrom kalman_course.plotting import plot_belief",
+    "other-libraries": "import re\nimport scipy.linalg as sla\npattern = re.compile('a')\nL = sla.cholesky(np.eye(2))",
+    "display": "from IPython.display import display, Markdown\ndisplay(Markdown('**belief**'))",
+    "numpy-state": "np.random.seed(0)\nnp.set_printoptions(precision=3)",
+    "own-class": ("import dataclasses\n@dataclasses.dataclass(frozen=True)\nclass Pose:\n    x: float\n"
+                  "    def __post_init__(self):\n        object.__setattr__(self, 'x', float(self.x))\n"
+                  "    def __eq__(self, other):\n        return self.x == other.x"),
+    "own-object-attributes": "class State:\n    pass\ns = State()\ns.x = np.zeros(2)\ns.__dict__.update(P=np.eye(2))",
+    "in-place-array-updates": "belief = np.full(5, 0.2)\nbelief /= belief.sum()\nbelief[0] = 1.0",
+    "exceptions": "try:\n    1 / 0\nexcept ZeroDivisionError as error:\n    print(error)",
+    "globals-read": "print(sorted(globals())[:3])",
+}
+
+
+@pytest.mark.parametrize("name", HONEST)
+def test_honest_code_is_not_flagged(name):
+    assert _extra_flags(HONEST[name]) == []
+
+
+@pytest.mark.parametrize("chapter", CHAPTERS)
+def test_every_chapter_knows_what_its_release_imports(chapter):
+    """Whatever a chapter's setup cell imports, rebinding `checks` or patching numpy is seen."""
+    nb = _solved(chapter)
+    cell = new_code_cell("checks = None\nnp.allclose = lambda *a, **k: True")
+    cell["id"] = "extra"
+    nb.cells.insert(1, cell)
+    assert review_flags(nb, _release(chapter)) == [
+        "cell extra: assigns to `np.allclose` (`numpy.allclose`), patching something imported",
+        "cell extra: rebinds `checks`, a name the exercise imports"]
+
+
+def test_an_edited_setup_cell_may_repeat_its_imports_but_not_change_them():
+    nb = _solved(CH01)
+    setup = next(c for c in nb.cells if c["id"] == "setup")
+    setup.source += "\nimport numpy as np\nfrom kalman_course import checks"
+    assert review_flags(nb, _release(CH01)) == []
+    edited = setup.source
+    setup.source = edited + "\nimport jax.numpy as np"
+    assert review_flags(nb, _release(CH01)) == ["cell setup: rebinds `np`, a name the exercise imports, to `jax.numpy`"]
+    setup.source = edited + "\nnp.allclose = print"  # the released cell's own flags are no cover for new ones
+    assert review_flags(nb, _release(CH01)) == [
+        "cell setup: assigns to `np.allclose` (`numpy.allclose`), patching something imported"]
+
+
+def test_only_module_level_rebinding_counts():
+    """A function's own `checks` is local; the same assignment at module level is not."""
+    inside = "def helper():\n    checks = None\n    return checks"
+    assert _extra_flags(inside) == []
+    assert _extra_flags(inside + "\nchecks = helper()") == ["cell extra: rebinds `checks`, a name the exercise imports"]
+
+
+def test_code_nested_too_deeply_to_walk_is_a_flag_not_a_failure():
+    assert _extra_flags("x = " + " + ".join(["1"] * 200)) == []
+    assert _extra_flags("x = " + " + ".join(["1"] * 3000)) == [
+        "cell extra: nests code too deeply for the review to read it"]

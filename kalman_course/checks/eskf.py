@@ -574,7 +574,7 @@ _RUN_MISTAKES = (
 )
 
 
-def _learner_pieces(namespace: dict) -> dict:
+def _learner_pieces(namespace) -> dict:
     """The building blocks the run uses: the learner's (from their namespace) or the reference's."""
     pieces = {"error_dynamics": eskf.error_dynamics, "noise_jacobian": eskf.noise_jacobian,
               "discretise": eskf.discretise, "process_noise": eskf.process_noise,
@@ -583,8 +583,9 @@ def _learner_pieces(namespace: dict) -> dict:
               "inject": eskf.inject, "reset_covariance": eskf.reset_covariance,
               "nominal_step": eskf.nominal_step}
     for name in pieces:
-        if callable(namespace.get(name)):
-            pieces[name] = namespace[name]
+        learner_fn = namespace.get(name)
+        if callable(learner_fn):
+            pieces[name] = learner_fn
     return pieces
 
 
@@ -701,7 +702,7 @@ def _diagnose_run(run_eskf, result, ex, t_end, cfg) -> str | None:
     return ""
 
 
-def _failing_piece(namespace: dict) -> str:
+def _failing_piece(namespace) -> str:
     """The message for the first piece of the run (in the learner's namespace) that fails, or ""."""
     upstream = upstream_failure(_RUN_USES, namespace)
     if upstream:

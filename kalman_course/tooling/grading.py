@@ -273,40 +273,67 @@ def run_graded(nb, *, timeout: float = 120.0, compare: bool = False):
         What went wrong when the status is not GRADED.
     """
     from kalman_course.checks.remote import KernelLost
-    from kalman_course.tooling.kernel_session import KernelSession
 
     verdicts, errors = {}, []
     # the checks (SymPy, the excerpts) are imported while the kernel starts and runs the first cells
     importing = threading.Thread(target=registered_checks, daemon=True)
     importing.start()
-    with tempfile.TemporaryDirectory(prefix="kalman-grade-") as tmp:
-        session = KernelSession(tmp, timeout)
-        try:
-            session.wait_until_ready()
-            for cell in nb.cells:
-                if cell.cell_type != "code":
-                    continue
-                info = grader_info(cell)
-                if info is None:
-                    outcome = session.run_cell(cell.source)
-                    if outcome.status != "ok":
-                        errors.append((cell.get("id"), outcome.error))
-                    continue
-                importing.join()
-                passed, message = _judge(session, *grader_call(cell.source))
-                verdict = _GraderVerdict(passed, message)
-                if compare:
-                    outcome = session.run_cell(cell.source, capture=True)
-                    verdict.in_kernel = (outcome.status == "ok"
-                                         and outcome.stdout == _success_line(info[0]))
-                verdicts[cell["id"]] = verdict
-        except KernelLost as lost:
-            return lost.status, verdicts, errors, lost.detail
-        finally:
-            session.close()
+    session = _fresh_session(timeout)
+    try:
+        session.wait_until_ready()
+        for cell in nb.cells:
+            if cell.cell_type != "code":
+                continue
+            info = grader_info(cell)
+            if info is None:
+                outcome = session.run_cell(cell.source)
+                if outcome.status != "ok":
+                    errors.append((cell.get("id"), outcome.error))
+                continue
+            importing.join()
+            passed, message = _judge(session, *grader_call(cell.source))
+            verdict = _GraderVerdict(passed, message)
+            if compare:
+                outcome = session.run_cell(cell.source, capture=True)
+                verdict.in_kernel = (outcome.status == "ok"
+                                     and outcome.stdout == _success_line(info[0]))
+            verdicts[cell["id"]] = verdict
+    except KernelLost as lost:
+        return lost.status, verdicts, errors, lost.detail
+    finally:
+        session.close()
     if session.timed_out:
         return TIMED_OUT, verdicts, errors, f"a cell ran longer than {timeout:g} s"
     return GRADED, verdicts, errors, ""
+
+
+#: A kernel started ahead for the next notebook this process grades (see :func:`grade_many`).
+_spare_session = None
+
+
+def _fresh_session(timeout: float):
+    """A new kernel for one notebook: the one started ahead, if any (and then start the next)."""
+    from kalman_course.tooling.kernel_session import KernelSession
+
+    global _spare_session
+    session = _spare_session or KernelSession(timeout)
+    session.timeout = float(timeout)
+    if _spare_session is not None:
+        _spare_session = KernelSession(timeout)
+    return session
+
+
+def _keep_a_spare_kernel() -> None:
+    """Worker set-up of :func:`grade_many`: import the checks and start a kernel ahead."""
+    global _spare_session
+    from kalman_course.tooling.kernel_session import KernelSession
+
+    from multiprocessing.util import Finalize
+
+    _spare_session = KernelSession(120.0)
+    # a worker leaves through os._exit, which skips atexit: multiprocessing's own hook stops the spare
+    Finalize(None, lambda: _spare_session and _spare_session.close(), exitpriority=10)
+    registered_checks()
 
 
 def registered_checks() -> dict:
@@ -423,7 +450,7 @@ def grade_many(submissions: list[tuple], release: dict, *, timeout: float = 120.
         return results
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    with ProcessPoolExecutor(max_workers=min(jobs, len(items)), initializer=registered_checks) as pool:
+    with ProcessPoolExecutor(max_workers=min(jobs, len(items)), initializer=_keep_a_spare_kernel) as pool:
         futures = {pool.submit(_grade_one, item): i for i, item in enumerate(items)}
         for done, future in enumerate(as_completed(futures), 1):
             results[futures[future]] = future.result()

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import queue
+import shutil
 import sys
 import tempfile
 import time
@@ -54,19 +55,22 @@ class CellOutcome:
 class KernelSession(Session):
     """A fresh kernel for one notebook.
 
+    The kernel starts at once, in a new temporary folder of its own (its working folder,
+    removed by :meth:`close`); :meth:`wait_until_ready` waits for it.
+
     Parameters
     ----------
-    cwd : str
-        The kernel's working folder.
     timeout : float
         Seconds each cell (and each check, over all its calls) may take.
     """
 
-    def __init__(self, cwd: str, timeout: float):
+    def __init__(self, timeout: float):
         super().__init__()
         self.timeout = float(timeout)
         self.deadline = None  # set by the grader for the check that is running
         self.timed_out = False
+        self.folder = tempfile.mkdtemp(prefix="kalman-grade-")
+        cwd = self.folder
         self._files = tempfile.mkdtemp(prefix="agent-", dir=cwd)
         self._count = 0
         env = dict(os.environ)
@@ -93,9 +97,7 @@ class KernelSession(Session):
             self.km.shutdown_kernel(now=True)
         except Exception:  # already dead
             pass
-        for name in os.listdir(self._files):
-            os.remove(os.path.join(self._files, name))
-        os.rmdir(self._files)
+        shutil.rmtree(self.folder, ignore_errors=True)
 
     # -- cells -------------------------------------------------------------------------
 

@@ -80,6 +80,7 @@ _FRAMES = "which reaches into running code's frames and objects"
 _HOOKS = "which hooks into the interpreter"
 _SHELL = "which reaches into the IPython shell or kernel"
 _MODULES = "which reaches the loaded modules"
+_BY_NAME = "which gets a module's contents by name"
 
 #: Dotted paths (and everything under them) whose use is flagged, with the reason.
 _RISKY = {
@@ -91,7 +92,7 @@ _RISKY = {
     "pickle.Unpickler": _LOADS, "_pickle": _LOADS, "dill.load": _LOADS, "dill.loads": _LOADS,
     "cloudpickle.load": _LOADS, "cloudpickle.loads": _LOADS,
     "inspect.getsource": _SOURCE, "inspect.getsourcelines": _SOURCE, "inspect.getsourcefile": _SOURCE,
-    "inspect.getfile": _SOURCE, "inspect.findsource": _SOURCE, "inspect.getmembers": _SOURCE,
+    "inspect.getfile": _SOURCE, "inspect.findsource": _SOURCE, "inspect.getmembers": _BY_NAME,
     "linecache": _SOURCE, "pkgutil.get_data": _SOURCE,
     "sys._getframe": _FRAMES, "sys._current_frames": _FRAMES, "sys.settrace": _FRAMES, "sys.setprofile": _FRAMES,
     "threading.settrace": _FRAMES, "threading.setprofile": _FRAMES, "threading.settrace_all_threads": _FRAMES,
@@ -153,10 +154,13 @@ def _parser():
     def parse(source: str, depth: int = 0) -> ast.Module | None:
         if source not in trees:
             try:
-                tree = ast.parse(transformer.transform_cell(source))
+                transformed = transformer.transform_cell(source)
+                tree = ast.parse(transformed)
             except (SyntaxError, ValueError):
-                tree = None  # the learner's own error; the run reports it
-            if tree is not None and depth < 3:  # a magic inside a magic's body is read too, not endlessly
+                tree, transformed = None, ""  # the learner's own error; the run reports it
+            # only magics (``get_ipython().run_line_magic(...)``) run Python of their own; a magic
+            # inside a magic's body is read too, not endlessly
+            if tree is not None and depth < 3 and "get_ipython" in transformed:
                 for candidates in _magic_python(tree):
                     inner = next((t for c in candidates if (t := parse(c, depth + 1)) is not None), None)
                     if inner is not None:
@@ -302,15 +306,16 @@ def _stored_names(target: ast.AST):
 def _bindings(node: ast.AST):
     """(name, how, what) for each name that ``node`` binds by itself (not through the
     statements it contains) in its scope: how is ``import`` (what: the imported dotted
-    path), ``assign`` (what: the value expression or None), ``delete`` or ``other``."""
+    path), ``assign`` (what: the value expression or None), ``define`` (``def``, ``class``),
+    ``delete`` or ``other``; and
+    ``("*", "star", module)`` for a star-import."""
     if isinstance(node, ast.Import):
         for a in node.names:
             yield (a.asname, "import", a.name) if a.asname else (a.name.split(".")[0], "import", a.name.split(".")[0])
     elif isinstance(node, ast.ImportFrom):
         module = "." * node.level + (node.module or "")
         for a in node.names:
-            if a.name != "*":
-                yield a.asname or a.name, "import", f"{module}.{a.name}"
+            yield ("*", "star", module) if a.name == "*" else (a.asname or a.name, "import", f"{module}.{a.name}")
     elif isinstance(node, ast.Assign):
         for target in node.targets:
             for name, value in _pairs(target, node.value):
@@ -326,7 +331,7 @@ def _bindings(node: ast.AST):
             for name in _stored_names(item.optional_vars) if item.optional_vars else ():
                 yield name, "other", None
     elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
-        yield node.name, "other", None
+        yield node.name, "define", None
     elif isinstance(node, ast.Delete):
         for target in node.targets:
             for name in _stored_names(target):
@@ -342,17 +347,22 @@ def _bindings(node: ast.AST):
         yield node.target.id, "assign", node.value
 
 
-def _scope_names(body: list[ast.stmt]) -> tuple[list[tuple[str, str, object]], set[str]]:
+_BINDERS = (ast.Import, ast.ImportFrom, ast.Assign, ast.AugAssign, ast.AnnAssign, ast.For, ast.AsyncFor, ast.With,
+            ast.AsyncWith, ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef, ast.Delete, ast.ExceptHandler,
+            ast.match_case, ast.NamedExpr)
+def _scope_names(body: list[ast.stmt], cache: dict[int, tuple]) -> tuple[list[tuple[str, str, object]], set[str]]:
     """The bindings (see :func:`_bindings`) of one scope's body, and the names it declares
-    ``global`` or ``nonlocal``."""
-    bindings, declared = [], set()
-    for stmt in body:
-        for node in _same_scope_nodes(stmt):
-            if isinstance(node, (ast.Global, ast.Nonlocal)):
-                declared.update(node.names)
-            else:
-                bindings += _bindings(node)
-    return bindings, declared
+    ``global`` or ``nonlocal``; ``cache`` keeps them by body for the trees of one review."""
+    if id(body) not in cache:
+        bindings, declared = [], set()
+        for stmt in body:
+            for node in _same_scope_nodes(stmt):
+                if isinstance(node, _BINDERS):
+                    bindings += _bindings(node)
+                elif isinstance(node, (ast.Global, ast.Nonlocal)):
+                    declared.update(node.names)
+        cache[id(body)] = (body, bindings, declared)  # the body is kept so that its id stays its own
+    return cache[id(body)][1:]
 
 
 @dataclass
@@ -363,27 +373,32 @@ class _Notebook:
     machinery: set[str]
     #: module-level name -> dotted path of what it is bound to by an import or an alias
     imported: dict[str, str] = field(default_factory=dict)
-    #: module-level names the notebook binds to its own objects (they hide builtins)
+    #: module-level names of the notebook's own functions and classes (they hide builtins)
     own: set[str] = field(default_factory=set)
     #: names the release binds by a module-level import -> the imported path
     released_imports: dict[str, str] = field(default_factory=dict)
     released_stars: set[str] = field(default_factory=set)
+    #: body id -> its scope's names (see :func:`_scope_names`)
+    scopes: dict[int, tuple] = field(default_factory=dict)
+
+    def scope_names(self, body: list[ast.stmt]):
+        return _scope_names(body, self.scopes)
 
 
 def _notebook(release_trees: list[ast.Module], submission_trees: list[ast.Module], to_write, machinery) -> _Notebook:
     nb = _Notebook(to_write, machinery)
     for tree in release_trees:
-        for name, how, what in _scope_names(tree.body)[0]:
+        for name, how, what in nb.scope_names(tree.body)[0]:
             if how == "import":
                 nb.released_imports[name] = what
-        nb.released_stars |= {"." * n.level + (n.module or "") for n in ast.walk(tree)  # only legal at module level
-                              if isinstance(n, ast.ImportFrom) and any(a.name == "*" for a in n.names)}
-    bindings = [b for tree in [*release_trees, *submission_trees] for b in _scope_names(tree.body)[0]]
+            elif how == "star":
+                nb.released_stars.add(what)
+    bindings = [b for tree in [*release_trees, *submission_trees] for b in nb.scope_names(tree.body)[0]]
     deleted = {name for name, how, _ in bindings if how == "delete"}
     for name, how, what in bindings:
         if how == "import":
             nb.imported.setdefault(name, what)
-        elif how != "delete" and name not in deleted:
+        elif how == "define" and name not in deleted:  # only a def or class surely makes a name the learner's own
             nb.own.add(name)
     reader = _Reader(nb, shadow_builtins=False)  # `exec = exec` is an alias of the builtin, not a new name
     for _ in range(2):  # twice, so that an alias of an alias resolves
@@ -466,7 +481,7 @@ class _Reader:
     # scopes
 
     def _push(self, body: list[ast.stmt], table: dict[str, str], is_class: bool = False):
-        bindings, declared = _scope_names(body)
+        bindings, declared = self.nb.scope_names(body)
         bindings = [b for b in bindings if b[0] not in declared]
         for name, how, what in bindings:
             table.setdefault(name, "")
@@ -572,7 +587,7 @@ class _Reader:
         path = self.resolve(node)
         if path in _GET_IPYTHON:
             self.flag(node, f"uses `{node.id}` without calling it for a magic, {_SHELL}")
-        elif path and (reason := _risk(path)) and path != "sys.modules":
+        elif path and (reason := _risk(path)):
             self.flag_use(node, path, reason)
 
     def visit_Constant(self, node):
@@ -583,17 +598,18 @@ class _Reader:
             if _PACKAGE_PATH.search(node.value):
                 self.flag(node, f"names a path inside the `kalman_course` package ({shown}), where the reference code is")
 
-    def visit_Attribute(self, node, shell_ok: bool = False):
+    def visit_Attribute(self, node):
         chain, base = [], node
         while isinstance(base, ast.Attribute):
             chain.append(base)
             base = base.value
         written, path = _text(node), self.resolve(node)
         risky_attr = next((a.attr for a in reversed(chain) if a.attr in _RISKY_ATTRIBUTES), None)
+        if not isinstance(node.ctx, ast.Load) and node.attr in _INTERNALS:
+            risky_attr = None  # `f.__code__ = ...` is reported as the assignment it is
         literal_sys_modules = any(_dotted(a) == "sys.modules" for a in chain)  # flagged as such already
         if path.startswith("get_ipython()"):
-            if not shell_ok:
-                self.flag(node, f"uses `{written}`{_via(written, path)}, {_SHELL}")
+            self.flag(node, f"uses `{written}`{_via(written, path)}, {_SHELL}")
         elif path in _GET_IPYTHON:
             self.flag(node, f"uses `{written}` without calling it for a magic, {_SHELL}")
         elif path and (reason := _risk(path)) and not (literal_sys_modules and _under(path, "sys.modules")):
@@ -773,7 +789,7 @@ class _Reader:
 def _rebinding_flags(tree: ast.Module, nb: _Notebook) -> set[str]:
     """Module-level rebinding of the names the release imports, and ``global`` declarations of them."""
     flags = set()
-    for name, how, what in _scope_names(tree.body)[0]:
+    for name, how, what in nb.scope_names(tree.body)[0]:
         if name not in nb.released_imports:
             continue
         if how == "import":
@@ -829,7 +845,10 @@ def _cell_flags(tree: ast.Module, nb: _Notebook) -> set[str]:
                 if isinstance(inner, ast.Attribute) and inner.attr == node.name and _dotted(inner):
                     flags.add(f"`{node.name}` calls `{_dotted(inner)}` instead of doing the work")
     reader = _Reader(nb)
-    reader.visit(tree)
+    try:
+        reader.visit(tree)
+    except RecursionError:  # the walk recurses; code nested this deeply is worth reading by hand anyway
+        reader.flags.add("nests code too deeply for the review to read it")
     return flags | reader.flags | _rebinding_flags(tree, nb)
 
 
@@ -866,7 +885,8 @@ def review_flags(submission, release) -> list[str]:
                      if c.cell_type == "code" and c.get("id") not in graders and not grader_info(c)]
     learner_trees = [t for c in learner_cells if (t := parse(c.source))]
     machinery = set()
-    for tree in [*release_trees, *(t for c in submission.cells if c.cell_type == "code" and (t := parse(c.source)))]:
+    all_trees = [*release_trees, *(t for c in submission.cells if c.cell_type == "code" and (t := parse(c.source)))]
+    for tree in {id(t): t for t in all_trees}.values():  # a cell the learner left as released is read once
         machinery |= _machinery_names(tree)
     nb = _notebook(release_trees, learner_trees, to_write, machinery)
 
