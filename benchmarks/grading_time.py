@@ -2,7 +2,7 @@
 
 Usage: ``python benchmarks/grading_time.py [--repeats 3] [NOTEBOOK ...]`` (default: every
 notebook in exercises/). Prints, per notebook, the median over the repeats of the time to
-restore its grader cells, run it in a fresh kernel under nbval and count its points.
+restore its grader cells, run it in a fresh kernel and judge its grader cells from outside.
 """
 
 from __future__ import annotations

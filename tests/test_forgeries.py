@@ -2,9 +2,9 @@
 
 Each forgery starts from a released exercise (its stubs are wrong) and adds or rewrites
 learner cells only; the grader cells stay as released, so the restore step has nothing to
-undo. Every technique below really fools a grader that runs the checks inside the learner's
-kernel: run the forged notebook in JupyterLab and the forged grader cells print their
-success lines. None repeats a case of ``test_hostile_submissions.py``.
+undo. All but one of the techniques below earned the points they aim at from the grader
+that ran the checks inside the learner's kernel (see :class:`Forgery`); none repeats a
+case of ``test_hostile_submissions.py``.
 
 A forgery names the checks it forges. For each of them the gradebook must give 0 points,
 or carry a review flag that names the forging cell (so the instructor looks at it). Several

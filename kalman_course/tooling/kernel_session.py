@@ -35,7 +35,7 @@ _AGENT_CALL = ("__import__('kalman_course.checks.kernel_agent', fromlist=['serve
 
 
 class _ThisPython(KernelSpecManager):
-    """Kernels run the Python that runs the grader (as ``--nbval-current-env`` did)."""
+    """Kernels run the Python that runs the grader (the environment the course is installed in)."""
 
     def get_kernel_spec(self, kernel_name):
         return KernelSpec(argv=[sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}",
@@ -74,7 +74,7 @@ class KernelSession(Session):
         self._files = tempfile.mkdtemp(prefix="agent-", dir=cwd)
         self._count = 0
         env = dict(os.environ)
-        env.pop("MPLBACKEND", None)  # the kernel picks its inline backend, as in JupyterLab
+        env["MPLBACKEND"] = "Agg"  # plots are not graded: draw them nowhere (no PNG rendering)
         env["PYDEVD_DISABLE_FILE_VALIDATION"] = "1"  # no debugger warning on stderr
         self.km = KernelManager(kernel_spec_manager=_ThisPython(), kernel_name="python3")
         self.km.start_kernel(cwd=cwd, env=env)
