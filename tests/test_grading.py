@@ -120,6 +120,11 @@ def test_chapter_from_metadata_or_file_name(tmp_path):
     assert grading.chapter_of_notebook(_release(), tmp_path / "x.ipynb") == "07"
     assert grading.chapter_of_notebook(new_notebook(), tmp_path / "03_kf.ipynb") == "03"
     assert grading.chapter_of_notebook(new_notebook(), tmp_path / "kf.ipynb") == ""
+    edited = _release()
+    edited.metadata["kalman_course"]["chapter"] = "7"
+    assert grading.chapter_of_notebook(edited, tmp_path / "07_x.ipynb", {"07": None}) == "07"
+    assert grading.chapter_of_notebook(edited, tmp_path / "x.ipynb", {"07": None}) == "7"
+    assert grading.chapter_of_notebook(_release(), tmp_path / "01_x.ipynb", {"01": None, "07": None}) == "07"
 
 
 def test_missing_release_folder_is_a_clear_error(tmp_path):

@@ -88,13 +88,19 @@ class NotebookResult:
         return ""
 
 
-def chapter_of_notebook(nb, path: Path) -> str:
-    """Chapter from the notebook metadata, else from a ``NN_`` file-name prefix ('' if neither)."""
-    chapter = nb.metadata.get("kalman_course", {}).get("chapter")
-    if chapter:
-        return str(chapter)
+def chapter_of_notebook(nb, path: Path, known=None) -> str:
+    """Chapter from the notebook metadata, else from a ``NN_`` file-name prefix ('' if neither).
+
+    With ``known`` (the released chapters), metadata naming no known chapter gives way to
+    the file name (an edited chapter number is restored and reported, not a lost grade).
+    """
+    meta = nb.metadata.get("kalman_course")
+    chapter = str(meta.get("chapter") or "") if isinstance(meta, dict) else ""
     m = re.match(r"^(\d\d)_", path.name)
-    return m.group(1) if m else ""
+    by_name = m.group(1) if m else ""
+    if chapter and (known is None or chapter in known or by_name not in known):
+        return chapter
+    return by_name
 
 
 def load_release(release_dir: str | Path) -> dict:
@@ -387,7 +393,7 @@ def grade_notebook(path: str | Path, release: dict, *, timeout: float = 120.0,
 def grade_submission(submission, release: dict, result: NotebookResult, *, timeout: float = 120.0,
                      compare: bool = False) -> NotebookResult:
     """Grade a notebook already read (``result`` names it and receives the outcome)."""
-    result.chapter = chapter_of_notebook(submission, Path(result.path))
+    result.chapter = chapter_of_notebook(submission, Path(result.path), release)
     if result.chapter not in release:
         result.status = NO_RELEASE
         result.detail = f"no released exercise for chapter {result.chapter or '?'}"
