@@ -132,6 +132,7 @@ HOOKS = "which hooks into the interpreter"
 PATCHES = "patching something imported"
 CHANGES = "changing something imported"
 REFERENCE = "where the reference code is"
+LOADS = "which loads objects or code from bytes"
 
 FORGERIES = {
     # 1. rebinding a name the release imports, writing into an imported namespace
@@ -158,7 +159,8 @@ FORGERIES = {
                             f"writes into the namespace of `np.__dict__` (`numpy`), {CHANGES}"),
     "vars-of-module-updated": ("import numpy\nvars(numpy).update(allclose=lambda *a, **k: True)",
                                f"writes into the namespace of `vars(numpy)` (`numpy`), {CHANGES}"),
-    "setattr-on-module": ("setattr(np, 'allclose', lambda *a, **k: True)", f"calls `setattr` on `np` (`numpy`), {CHANGES}"),
+    "setattr-on-module": ("setattr(np, 'allclose', lambda *a, **k: True)",
+                          f"calls `setattr` on `np` (`numpy`), {CHANGES}"),
     "object-setattr-on-module": ("object.__setattr__(np, 'isclose', print)",
                                  f"calls `__setattr__` on `np` (`numpy`), {CHANGES}"),
     # 2. running or building code the review cannot read
@@ -178,9 +180,10 @@ FORGERIES = {
                       "assigns to `mine.__code__`, swapping the internals of an object"),
     "class-assigned": ("x = np.float64(1.0)\nx.__class__ = float",
                        "assigns to `x.__class__`, swapping the internals of an object"),
-    "globals-of-a-function": ("(lambda: 0).__globals__['checks'] = None", f"uses `(lambda: 0).__globals__`, {INTERNALS}"),
-    "pickle-loads": ("import pickle\nf = pickle.loads(b'')", "uses `pickle.loads`, which loads objects or code from bytes"),
-    "marshal-loads": ("import marshal\nf = marshal.loads(b'')", "uses `marshal.loads`, which loads objects or code from bytes"),
+    "globals-of-a-function": ("(lambda: 0).__globals__['checks'] = None",
+                              f"uses `(lambda: 0).__globals__`, {INTERNALS}"),
+    "pickle-loads": ("import pickle\nf = pickle.loads(b'')", f"uses `pickle.loads`, {LOADS}"),
+    "marshal-loads": ("import marshal\nf = marshal.loads(b'')", f"uses `marshal.loads`, {LOADS}"),
     # 3. reading source code
     "getsource": ("import inspect\nfrom kalman_course.filters import bayes\nexec(inspect.getsource(bayes))",
                   f"uses `inspect.getsource`, {SOURCE}"),
@@ -206,7 +209,8 @@ FORGERIES = {
     "ast-transformer": ("import IPython\nIPython.get_ipython().ast_transformers.append(None)",
                         "uses `IPython.get_ipython().ast_transformers.append` "
                         f"(`get_ipython().ast_transformers.append`), {SHELL}"),
-    "events": ("get_ipython().events.register('post_run_cell', print)", f"uses `get_ipython().events.register`, {SHELL}"),
+    "events": ("get_ipython().events.register('post_run_cell', print)",
+               f"uses `get_ipython().events.register`, {SHELL}"),
     "register-magic": ("get_ipython().register_magic_function(print)",
                        f"uses `get_ipython().register_magic_function`, {SHELL}"),
     "display-formatter": ("get_ipython().display_formatter.formatters.clear()",
@@ -224,7 +228,8 @@ FORGERIES = {
                                          f"uses `sys._getframe`, {FRAMES}"),
     "getframe-imported-under-another-name": ("from sys import _getframe as g\nframe = g()",
                                              f"uses `g` (`sys._getframe`), {FRAMES}"),
-    "settrace-through-an-alias": ("import sys\ns = sys\ns.settrace(None)", f"uses `s.settrace` (`sys.settrace`), {FRAMES}"),
+    "settrace-through-an-alias": ("import sys\ns = sys\ns.settrace(None)",
+                                  f"uses `s.settrace` (`sys.settrace`), {FRAMES}"),
     "settrace-through-a-default": ("import sys\ndef install(s=sys):\n    s.settrace(None)",
                                    f"uses `s.settrace` (`sys.settrace`), {FRAMES}"),
     "sys-reexported-by-os": ("import os\nos.sys.settrace(None)", f"uses `os.sys.settrace`, {FRAMES}"),
@@ -272,7 +277,8 @@ FORGERIES = {
                                    "f = getattr(kb, name)",
                                    "calls `getattr` on `kb` (`kalman_course.filters.bayes`), a course module"),
     "getattr-on-a-course-module-imported-at-run-time": (
-        "import importlib\nf = getattr(importlib.import_module('kalman_course.filters.bayes'), 'histogram' + '_update')",
+        "import importlib\n"
+        "f = getattr(importlib.import_module('kalman_course.filters.bayes'), 'histogram' + '_update')",
         "calls `getattr` on `importlib.import_module('kalman_course.filters.bayes')` "
         "(`kalman_course.filters.bayes`), a course module"),
     "getattr-on-a-module-named-at-run-time": ("import importlib\nm = importlib.import_module('kalman' + '_course')\n"
@@ -293,16 +299,28 @@ FORGERIES = {
     "globals-binds-the-function": ("from kalman_course.filters import bayes\n"
                                    "globals()['histogram_update'] = bayes.histogram_update",
                                    "binds `histogram_update` through `globals()` instead of writing it"),
-    "globals-update-rebinds": ("globals().update({'checks': None})", f"rebinds `checks`, {IMPORTS}, through `globals()`"),
+    "globals-update-rebinds": ("globals().update({'checks': None})",
+                               f"rebinds `checks`, {IMPORTS}, through `globals()`"),
     "globals-computed-name": ("name = 'histogram' + '_update'\nglobals()[name] = print",
                               "writes into `globals()` under a computed name"),
     "locals-binds-the-function": ("locals().setdefault('histogram_predict', print)",
                                   "binds `histogram_predict` through `locals()` instead of writing it"),
     "vars-binds-the-function": ("vars()['sensor_likelihood'] = print",
                                 "binds `sensor_likelihood` through `vars()` instead of writing it"),
+    # a function to write that only hands its work to a course function under another name
+    "delegation-to-a-course-function": ("def histogram_predict(belief, transition):\n"
+                                        "    \"\"\"Docstring.\"\"\"\n"
+                                        "    return circular_motion_model(belief, transition)",
+                                        "`histogram_predict` only returns what `circular_motion_model` "
+                                        "(`kalman_course.filters.bayes.circular_motion_model`) returns, "
+                                        "a course function, instead of doing the work"),
+    # signalling the process that runs the grading
+    "kill": ("import os, signal\nos.kill(os.getppid(), signal.SIGKILL)",
+             "uses `os.kill`, which signals other processes"),
     # the Python that magics run is read as well
     "hidden-in-capture": ("%%capture\nchecks = None", f"rebinds `checks`, {IMPORTS}"),
-    "hidden-in-timeit": ("%timeit -n1 -r1 np.allclose = print", f"assigns to `np.allclose` (`numpy.allclose`), {PATCHES}"),
+    "hidden-in-timeit": ("%timeit -n1 -r1 np.allclose = print",
+                         f"assigns to `np.allclose` (`numpy.allclose`), {PATCHES}"),
     "hidden-in-writefile": ("%%writefile helper.py\nimport sys\nsys.settrace(None)", f"uses `sys.settrace`, {FRAMES}"),
 }
 
@@ -342,6 +360,10 @@ HONEST = {
     "in-place-array-updates": "belief = np.full(5, 0.2)\nbelief /= belief.sum()\nbelief[0] = 1.0",
     "exceptions": "try:\n    1 / 0\nexcept ZeroDivisionError as error:\n    print(error)",
     "globals-read": "print(sorted(globals())[:3])",
+    "function-to-write-that-also-calls-a-course-function": ("def histogram_predict(belief, transition):\n"
+                                                            "    shape = circular_motion_model(len(belief)).shape\n"
+                                                            "    return transition @ belief"),
+    "exits": "import os\nif False:\n    os._exit(1)",
 }
 
 

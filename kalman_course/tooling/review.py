@@ -12,7 +12,8 @@ the released exercise (IPython magics translated, and the Python that ``%time``,
 - an import of a function the learner must write (one defined in a released cell with a
   ``# fix this`` line), or a binding or call of such a function through a module
   attribute (``histogram_update = bayes.histogram_update``), through ``getattr``,
-  ``operator.attrgetter`` or a write into ``globals()``;
+  ``operator.attrgetter`` or a write into ``globals()``; and such a function whose whole
+  body returns one call of a course function (the reference under another name);
 - an import of the grading machinery (``kalman_course.checks``, ``kalman_course.tooling.grading``,
   nbval) that the release does not make, an assignment to an attribute of it, or
   ``setattr`` on it;
@@ -35,7 +36,7 @@ the released exercise (IPython magics translated, and the Python that ``%time``,
 - frame and interpreter hooks: ``sys._getframe``, ``sys.settrace``/``setprofile``,
   ``threading.settrace``, ``inspect.currentframe``/``stack``, ``f_back``/``f_locals``/
   ``f_globals``/``tb_frame``, ``gc.get_referrers``/``get_objects``, ``ctypes``,
-  ``sys.meta_path``/``path_hooks``/``addaudithook``;
+  ``sys.meta_path``/``path_hooks``/``addaudithook``, and ``os.kill`` of another process;
 - an assignment to (or deletion of) an attribute of anything imported: numpy
   (``np.allclose = ...``, ``np.ndarray.__eq__ = ...``), builtins, a class of an imported
   module;
@@ -103,6 +104,7 @@ _RISKY = {
     "sys.meta_path": _HOOKS, "sys.path_hooks": _HOOKS, "sys.path_importer_cache": _HOOKS,
     "sys.addaudithook": _HOOKS, "sys.excepthook": _HOOKS, "sys.displayhook": _HOOKS, "sys.monitoring": _HOOKS,
     "sys.modules": _MODULES,
+    "os.kill": "which signals other processes", "os.killpg": "which signals other processes",
     "ipykernel": _SHELL, "jupyter_client": _SHELL, "zmq": _SHELL,
 }
 #: The parts of IPython that only display things; the rest of ``IPython.*`` reaches the shell.
@@ -497,11 +499,24 @@ class _Reader:
             if child is not None:
                 self.visit(child)
         self._enter_function(node.args, node.body)
+        if node.name in self.nb.to_write and len(self.scopes) == 1:
+            self._check_delegation(node)
         for stmt in node.body:
             self.visit(stmt)
         self.scopes.pop()
 
     visit_AsyncFunctionDef = visit_FunctionDef
+
+    def _check_delegation(self, node: ast.FunctionDef):
+        """A function the learner must write whose whole work is one call of a course function
+        (``return chi2_bounds(dof, n, confidence)``): the reference, under another name."""
+        body = node.body[1:] if _str(getattr(node.body[0], "value", None)) is not None else node.body  # docstring
+        if len(body) == 1 and isinstance(body[0], ast.Return) and isinstance(body[0].value, ast.Call):
+            callee = self.resolve(body[0].value.func)
+            if callee.startswith("kalman_course."):
+                written = _text(body[0].value.func)
+                self.flag(node, f"`{node.name}` only returns what `{written}`{_via(written, callee)} returns, "
+                                "a course function, instead of doing the work")
 
     def visit_Lambda(self, node):
         self.visit(node.args)
@@ -569,7 +584,8 @@ class _Reader:
                 module = "." * node.level + (node.module or "")
                 if a.name == "*":
                     if module not in self.nb.released_stars:
-                        self.flag(node, f"star-imports `{module}` (`from {module} import *`), which the exercise does not")
+                        self.flag(node, f"star-imports `{module}` (`from {module} import *`), "
+                                        "which the exercise does not")
                     continue
                 path = f"{module}.{a.name}"
             else:
@@ -596,7 +612,8 @@ class _Reader:
             if _SOLUTIONS_PATH.search(node.value):
                 self.flag(node, f"names a path under `solutions/` ({shown}), where the reference code is")
             if _PACKAGE_PATH.search(node.value):
-                self.flag(node, f"names a path inside the `kalman_course` package ({shown}), where the reference code is")
+                self.flag(node, f"names a path inside the `kalman_course` package ({shown}), "
+                                "where the reference code is")
 
     def visit_Attribute(self, node):
         chain, base = [], node
@@ -621,8 +638,8 @@ class _Reader:
             if a.attr in _LOCATIONS and (not owner or owner.startswith(("kalman_course", _RUNTIME_MODULE))):
                 self.flag(node, f"reads `{_text(a)}`{_via(_text(a), f'{owner}.{a.attr}' if owner else '')}, "
                                 "which locates the source files of the course's code")
-            elif (a.attr.startswith("__") and a.attr not in _HARMLESS_DUNDERS | _LOCATIONS and id(a) not in self.reported
-                  and owner.startswith(("kalman_course", _RUNTIME_MODULE))):
+            elif (a.attr.startswith("__") and a.attr not in _HARMLESS_DUNDERS | _LOCATIONS
+                  and id(a) not in self.reported and owner.startswith(("kalman_course", _RUNTIME_MODULE))):
                 self.flag(node, f"uses `{_text(a)}`{_via(_text(a), f'{owner}.{a.attr}')}, "
                                 "the inside of a course module or one imported at run time")
         if isinstance(base, ast.Call) and self.resolve(base) == "get_ipython()":
@@ -900,7 +917,7 @@ def review_flags(submission, release) -> list[str]:
         if tree is None:
             continue
         flags = _cell_flags(tree, nb)
-        if original is not None and (original_tree := parse(original.source)):
+        if flags and original is not None and (original_tree := parse(original.source)):
             flags -= _cell_flags(original_tree, nb)
         out += [f"cell {cid}: {flag}" for flag in sorted(flags)]
     return out

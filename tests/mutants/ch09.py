@@ -29,7 +29,7 @@ LOHI = LO + HI
 GATE_V = "    value = innovation @ np.linalg.solve(S, innovation)\n"
 GATE_T = "    threshold = chi2_ppf(confidence, len(innovation))\n"
 GATE_R = "    return bool(value <= threshold)"
-BOUNDS = "    lo, hi = chi2_bounds(dof, len(nis_values), confidence)\n"
+BOUNDS = "    lo, hi = chi2_interval(dof, len(nis_values), confidence)  # your interval, from above\n"
 MEAN = "    mean = np.mean(nis_values)\n"
 IFS = ('    if mean > hi:\n        return "overconfident"\n'
        '    if mean < lo:\n        return "underconfident"\n')
@@ -206,29 +206,29 @@ MUTANTS = [
     _gate(GATE_R, "    return bool(nees(innovation, S) <= threshold)\n\n\n" + BROKEN_NEES, "fix nees first",
           "gate through the learner's own nees, which is wrong (dependency)"),
 
-    # ---- consistency_verdict: mean NIS against chi2_bounds(dof, N, c)
+    # ---- consistency_verdict: mean NIS against chi2_interval(dof, N, c)
     _verdict(IFS, '    if mean > hi:\n        return "underconfident"\n'
                   '    if mean < lo:\n        return "overconfident"\n', "swapped",
              "over/underconfident swapped (the stub)"),
-    _verdict(BOUNDS, "    lo, hi = chi2_bounds(dof, 1, confidence)\n", "ONE value",
+    _verdict(BOUNDS, "    lo, hi = chi2_interval(dof, 1, confidence)\n", "ONE value",
              "interval of one value, not of the mean"),
-    _verdict(BOUNDS, "    lo, hi = chi2_bounds(dof * len(nis_values), 1, confidence)\n", "SUM",
+    _verdict(BOUNDS, "    lo, hi = chi2_interval(dof * len(nis_values), 1, confidence)\n", "SUM",
              "bounds of the sum compared with the mean"),
     _verdict(MEAN, "    mean = np.sum(nis_values)\n", "SUM of the values is compared",
              "sum compared with the mean's bounds"),
-    _verdict(BOUNDS, "    lo, hi = chi2_bounds(dof, len(nis_values), confidence)\n"
+    _verdict(BOUNDS, "    lo, hi = chi2_interval(dof, len(nis_values), confidence)\n"
                      "    lo, hi = lo / len(nis_values), hi / len(nis_values)\n", "divided by N once more",
              "mean's bounds divided by N again"),
-    _verdict(BOUNDS, "    lo, hi = chi2_bounds(dof * len(nis_values), len(nis_values), confidence)\n",
+    _verdict(BOUNDS, "    lo, hi = chi2_interval(dof * len(nis_values), len(nis_values), confidence)\n",
              "counted twice", "N · dof passed as dof"),
-    _verdict(BOUNDS, "    lo, hi = chi2_bounds(dof, len(nis_values) - 1, confidence)\n", "N − 1",
+    _verdict(BOUNDS, "    lo, hi = chi2_interval(dof, len(nis_values) - 1, confidence)\n", "N − 1",
              "N − 1 values"),
-    _verdict(BOUNDS, "    lo, hi = chi2_bounds(len(nis_values), dof, confidence)\n", "swapped",
+    _verdict(BOUNDS, "    lo, hi = chi2_interval(len(nis_values), dof, confidence)\n", "swapped",
              "dof and N swapped in the call"),
     _verdict(MEAN, "    mean = np.mean(nis_values) / dof\n", "divided by dof", "normalised mean, raw bounds"),
-    _verdict(BOUNDS, "    lo, hi = chi2_bounds(dof, len(nis_values), confidence)\n"
+    _verdict(BOUNDS, "    lo, hi = chi2_interval(dof, len(nis_values), confidence)\n"
                      "    lo, hi = lo / dof, hi / dof\n", "bounds are divided by dof", "normalised bounds, raw mean"),
-    _verdict(BOUNDS, "    lo, hi = chi2_bounds(dof, len(nis_values), 1 - confidence)\n", "1 − c",
+    _verdict(BOUNDS, "    lo, hi = chi2_interval(dof, len(nis_values), 1 - confidence)\n", "1 − c",
              "α instead of 1 − α"),
     _verdict(BOUNDS, "    lo, hi = chi2_ppf(1 - confidence, dof * len(nis_values)) / len(nis_values), "
                      "chi2_ppf(confidence, dof * len(nis_values)) / len(nis_values)\n", "(1 − c)/2 each",
@@ -238,9 +238,9 @@ MUTANTS = [
     _verdict(IFS, '    if mean > hi:\n        return "overconfident"\n'
                   '    return "underconfident"\n', "only the upper bound", "never consistent: lower bound unused"),
     _verdict(BOUNDS, "    lo, hi = dof, dof\n", "not with dof itself", "mean compared with dof"),
-    _verdict(BOUNDS, "    lo, hi = chi2_bounds(dof, len(nis_values), 0.95)\n", "`confidence` argument",
+    _verdict(BOUNDS, "    lo, hi = chi2_interval(dof, len(nis_values), 0.95)\n", "`confidence` argument",
              "95 % hard-coded"),
-    _verdict(BOUNDS, "    lo, hi = chi2_bounds(6, len(nis_values), confidence)\n", "`dof` argument",
+    _verdict(BOUNDS, "    lo, hi = chi2_interval(6, len(nis_values), confidence)\n", "`dof` argument",
              "dof 6 hard-coded"),
     _verdict(IFS, '    if mean > lo:\n        return "overconfident"\n'
                   '    if mean < hi:\n        return "underconfident"\n', "lo and hi are swapped",
