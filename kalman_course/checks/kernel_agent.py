@@ -96,36 +96,42 @@ def _call(namespace: dict, request: dict):
     return {"result": result}
 
 
-def serve(namespace: dict, request_path: str, response_path: str, handles: dict | None = None) -> None:
-    """Answer one request of the grading process (called by the code it executes here).
+def answer(namespace: dict, request: str, handles: dict | None = None) -> str:
+    """The plain-data answer to one request of the grading process (JSON text in and out).
 
     Parameters
     ----------
     namespace : dict
         The notebook's globals, where the learner's functions live.
-    request_path, response_path : str
-        Files: the request to read, the answer to write (both plain-data JSON).
+    request : str
+        The request: a call of a function on arguments, or a question about a name.
     handles : dict, optional
         Where dataclass instances sent whole are kept for later requests (default: this
         module's store, one per kernel).
     """
-    with open(request_path, encoding="utf-8") as fh:
-        text = fh.read()
     try:
-        request = plain_data.decode(text, from_kernel=False, learner_lookup=_lookup(namespace),
+        decoded = plain_data.decode(request, from_kernel=False, learner_lookup=_lookup(namespace),
                                     handles=_HANDLES if handles is None else handles)
-        if request["op"] == "describe":
-            answer = _describe(namespace, request["name"])
+        if decoded["op"] == "describe":
+            reply = _describe(namespace, decoded["name"])
         else:
-            answer = _call(namespace, request)
+            reply = _call(namespace, decoded)
     except NameError as exc:  # a learner function handed to another one is not defined
-        answer = {"raised": plain_data.Raised("NameError", str(exc))}
+        reply = {"raised": plain_data.Raised("NameError", str(exc))}
     except Exception as exc:  # a malformed request: only if something replaced the grader's
-        answer = {"raised": plain_data.Raised(type(exc).__name__, f"the request could not be read: {exc}")}
+        reply = {"raised": plain_data.Raised(type(exc).__name__, f"the request could not be read: {exc}")}
     try:
-        out = plain_data.encode(answer, towards_kernel=False, convert=to_plain)
+        return plain_data.encode(reply, towards_kernel=False, convert=to_plain)
     except (plain_data.NotPlainData, RecursionError, ValueError, TypeError):
-        result = answer.get("result")
-        out = plain_data.encode({"result": plain_data.Opaque(type(result).__name__)}, towards_kernel=False)
+        result = reply.get("result")
+        return plain_data.encode({"result": plain_data.Opaque(type(result).__name__)}, towards_kernel=False)
+
+
+def serve(namespace: dict, request_path: str, response_path: str) -> None:
+    """:func:`answer` the request in file ``request_path`` into file ``response_path``
+    (what the grading process executes in the kernel)."""
+    with open(request_path, encoding="utf-8") as fh:
+        request = fh.read()
+    reply = answer(namespace, request)
     with open(response_path, "w", encoding="utf-8") as fh:
-        fh.write(out)
+        fh.write(reply)

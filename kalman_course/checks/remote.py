@@ -16,9 +16,6 @@ protocol itself).
 
 from __future__ import annotations
 
-import os
-import tempfile
-
 from kalman_course.checks import kernel_agent, plain_data
 
 
@@ -148,10 +145,4 @@ class LocalSession(Session):
         self.namespace, self.handles = namespace, {}
 
     def exchange(self, request: str) -> str:
-        with tempfile.TemporaryDirectory(prefix="kalman-agent-") as tmp:
-            req, resp = os.path.join(tmp, "request.json"), os.path.join(tmp, "answer.json")
-            with open(req, "w", encoding="utf-8") as fh:
-                fh.write(request)
-            kernel_agent.serve(self.namespace, req, resp, self.handles)
-            with open(resp, encoding="utf-8") as fh:
-                return fh.read()
+        return kernel_agent.answer(self.namespace, request, self.handles)

@@ -63,7 +63,7 @@ from kalman_course.tooling.authoring import FIX_THIS, grader_info
 __all__ = ["review_flags", "MACHINERY"]
 
 #: Modules whose import by learner code is flagged: they run or report the checks.
-MACHINERY = ("kalman_course.checks", "kalman_course.tooling.grading", "kalman_course.tooling.nbval_results", "nbval")
+MACHINERY = ("kalman_course.checks", "kalman_course.tooling.grading", "kalman_course.tooling.kernel_session", "nbval")
 _ESCAPES = ("importlib", "builtins", "__builtins__")
 
 #: What IPython's TransformerManager turns magics and shell escapes into: ``get_ipython().<method>(...)``.
