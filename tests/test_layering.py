@@ -166,3 +166,34 @@ def test_short_names_resolve_to_real_modules():
         assert getattr(kalman_course, short) is importlib.import_module(real)
     with pytest.raises(AttributeError, match="no_such_module"):
         kalman_course.no_such_module  # noqa: B018
+
+
+def _third_party_imports(package: Path) -> dict[str, set[str]]:
+    """Top-level names of every non-stdlib, non-kalman_course module imported, with the files."""
+    import sys
+
+    found: dict[str, set[str]] = {}
+    for path in package.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+                names = [node.module]
+            else:
+                continue
+            for top in {n.split(".")[0] for n in names}:
+                if top != "kalman_course" and top not in sys.stdlib_module_names:
+                    found.setdefault(top, set()).add(path.name)
+    return found
+
+
+def test_the_package_imports_only_its_declared_dependencies():
+    # a learner's `pip install -e .` has these and nothing more (SciPy and FilterPy are test oracles)
+    runtime = {"numpy", "sympy", "matplotlib", "yaml", "nbformat", "nbclient", "jupyter_client", "IPython",
+               "jupyter_server_mathjax", "pytest",
+               "nbconvert"}  # installed with jupyterlab (its server exports notebooks)
+    # the benchmark report compares with FilterPy: an instructor's tool, documented as needing .[dev]
+    dev_only = {"filterpy": {"bench.py"}}
+    stray = {name: sorted(files) for name, files in _third_party_imports(PACKAGE).items()
+             if name not in runtime and not files <= dev_only.get(name, set())}
+    assert not stray, f"imports of packages the course does not install: {stray}"

@@ -1,6 +1,7 @@
 """core.linalg kernels against the formulas written out with plain numpy."""
 
 import numpy as np
+import pytest
 
 from kalman_course.core import linalg
 
@@ -41,3 +42,12 @@ def test_update_kernels_agree_with_the_textbook_forms():
     np.testing.assert_allclose(joseph, I_KG @ P @ I_KG.T + K @ R @ K.T, rtol=1e-10, atol=1e-13)
     # with the optimal gain the short form is the same matrix
     np.testing.assert_allclose(linalg.short_update(P, K, GP), joseph, rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("scale", [0.0, 1e-3, 0.3, 5.0, 40.0])
+def test_expm_agrees_with_scipy(scale):
+    from scipy.linalg import expm as scipy_expm
+
+    A = scale * np.random.default_rng(4).normal(size=(15, 15))
+    assert np.allclose(linalg.expm(A), scipy_expm(A), rtol=1e-12, atol=1e-14 * np.abs(scipy_expm(A)).max())
+

@@ -35,7 +35,7 @@ import numpy as np
 
 from kalman_course.filters import eskf
 from kalman_course.core import so3
-from kalman_course.core.linalg import symmetrise
+from kalman_course.core.linalg import expm, symmetrise
 from kalman_course.evaluation.metrics import position_rmse
 from kalman_course.checks.harness import CheckFailed, call, check, expect_close, expect_shape, expect_symmetric
 from kalman_course.checks.harness import learner_namespace, upstream_failure
@@ -225,8 +225,6 @@ def check_eskf_noise_jacobian(noise_jacobian):
 @check
 def check_eskf_discretisation(discretise):
     """``discretise(F_t, B_t, T)`` returns (F, B); checked through the blocks of B Q Bᵀ."""
-    from scipy.linalg import expm
-
     for x, f, w in _cases():
         F_t = eskf.error_dynamics(x.rotation, f, w, x.accel_bias, x.gyro_bias)
         for model in ("random_walk", "constant"):

@@ -17,7 +17,7 @@ import numpy as np
 from numpy import dot
 from numpy.linalg import solve
 
-__all__ = ["symmetrise", "predict_covariance", "innovation_covariance", "gain", "joseph_form",
+__all__ = ["expm", "symmetrise", "predict_covariance", "innovation_covariance", "gain", "joseph_form",
            "joseph_update", "short_update"]
 
 
@@ -105,3 +105,31 @@ def short_update(P_check: np.ndarray, K: np.ndarray, GP: np.ndarray,
     Right only for the optimal gain; cheaper than :func:`joseph_update`.
     """
     return symmetrise(P_check - dot(K, GP), out)
+
+
+def expm(A: np.ndarray) -> np.ndarray:
+    """Matrix exponential e^A by scaling and squaring a Taylor series (numpy only).
+
+    Scales A by 2^-s until its 1-norm is below 0.5, sums the Taylor series to 18 terms
+    (the remainder is then below 1e-17 of the result) and squares s times back.
+
+    Parameters
+    ----------
+    A : numpy.ndarray, shape (n, n)
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, n)
+    """
+    A = np.asarray(A, dtype=float)
+    norm = np.linalg.norm(A, 1)
+    squarings = max(0, int(np.ceil(np.log2(norm / 0.5)))) if norm > 0.5 else 0
+    scaled = A / 2.0**squarings
+    term = result = np.eye(A.shape[0])
+    for k in range(1, 19):
+        term = term @ scaled / k
+        result = result + term
+    for _ in range(squarings):
+        result = result @ result
+    return result
+
