@@ -259,13 +259,15 @@ def _judge(session, check_name: str, names: list[str]) -> tuple[bool, str]:
     return True, ""
 
 
-def run_graded(nb, *, timeout: float = 120.0, compare: bool = False):
+def run_graded(nb, *, timeout: float = 120.0, compare: bool = False, session=None):
     """Run a restored notebook in a fresh kernel; judge each grader cell in this process.
 
-    Learner cells run in the kernel in order. At each grader cell, its check runs here,
+    Learner cells run in the kernel in order, up to the last grader cell (what follows it
+    cannot change a verdict). At each grader cell, its check runs here,
     calling the learner's functions in the kernel (only plain data crosses); the grader
     cell itself does not run, unless ``compare`` is set, when it also runs in the kernel
     and its own verdict (the success line printed, no error) is recorded next to this one.
+    ``session``: a kernel already started for this notebook (:func:`_fresh_session`).
 
     Returns
     -------
@@ -284,12 +286,13 @@ def run_graded(nb, *, timeout: float = 120.0, compare: bool = False):
     # the checks (SymPy, the excerpts) are imported while the kernel starts and runs the first cells
     importing = threading.Thread(target=registered_checks, daemon=True)
     importing.start()
-    session = _fresh_session(timeout)
+    session = session or _fresh_session(timeout)
+    code = [cell for cell in nb.cells if cell.cell_type == "code"]
+    # cells after the last grader cannot change a verdict: they are not run
+    last = max((i for i, cell in enumerate(code) if grader_info(cell)), default=-1)
     try:
         session.wait_until_ready()
-        for cell in nb.cells:
-            if cell.cell_type != "code":
-                continue
+        for cell in code[:last + 1]:
             info = grader_info(cell)
             if info is None:
                 outcome = session.run_cell(cell.source)
@@ -399,12 +402,14 @@ def grade_submission(submission, release: dict, result: NotebookResult, *, timeo
         result.detail = f"no released exercise for chapter {result.chapter or '?'}"
         return result
     ref = release[result.chapter]
+    session = _fresh_session(timeout)  # the kernel starts while the notebook is restored and reviewed
     nb, result.tampered, result.readded = restore_graders(submission, ref)
     try:
         result.flags = review_flags(nb, ref)
     except Exception as exc:  # the review is advice: it must never cost a grade
         result.flags = [f"the code review failed ({type(exc).__name__}); read the notebook by hand"]
-    result.status, verdicts, errors, result.detail = run_graded(nb, timeout=timeout, compare=compare)
+    result.status, verdicts, errors, result.detail = run_graded(nb, timeout=timeout, compare=compare,
+                                                                session=session)
     if result.status == GRADED and (result.tampered or result.readded):
         result.status = TAMPERED_RESTORED
     graders = {cell["id"] for cell in ref.cells if grader_info(cell)}
