@@ -317,6 +317,21 @@ FORGERIES = {
     # signalling the process that runs the grading
     "kill": ("import os, signal\nos.kill(os.getppid(), signal.SIGKILL)",
              "uses `os.kill`, which signals other processes"),
+    # the graders' own code computes the expected values: reaching past the checks is flagged
+    "graders-internals": ("cases = checks.bayes._update_cases()",
+                          "uses `checks.bayes._update_cases` (`kalman_course.checks.bayes._update_cases`), "
+                          "the graders' own code (it computes the expected values)"),
+    "graders-submodule": ("h = checks.harness", "uses `checks.harness` (`kalman_course.checks.harness`), "
+                          "the graders' own code (it computes the expected values)"),
+    "graders-by-full-path": ("import kalman_course\nref = kalman_course.checks.bayes",
+                             "uses `kalman_course.checks.bayes`, the graders' own code (it computes the "
+                             "expected values)"),
+    "private-course-name": ("from kalman_course.filters import bayes as b\nf = b._normalised",
+                            "uses `b._normalised` (`kalman_course.filters.bayes._normalised`), a private "
+                            "name of the course's code"),
+    "private-course-import": ("from kalman_course.filters.bayes import _normalised",
+                              "imports `_normalised` from `kalman_course.filters.bayes`, a private name of the "
+                              "course's code"),
     # the Python that magics run is read as well
     "hidden-in-capture": ("%%capture\nchecks = None", f"rebinds `checks`, {IMPORTS}"),
     "hidden-in-timeit": ("%timeit -n1 -r1 np.allclose = print",
@@ -364,6 +379,8 @@ HONEST = {
                                                             "    shape = circular_motion_model(len(belief)).shape\n"
                                                             "    return transition @ belief"),
     "exits": "import os\nif False:\n    os._exit(1)",
+    "own-check-runs": ("try:\n    checks.histogram_update(lambda p, l: p)\nexcept checks.CheckFailed as error:\n"
+                       "    print(error)"),
 }
 
 

@@ -373,6 +373,8 @@ class _Notebook:
 
     to_write: set[str]
     machinery: set[str]
+    #: what learner code may use of ``kalman_course.checks``: the release's checks, CheckFailed, SUCCESS
+    check_api: set[str] = field(default_factory=set)
     #: module-level name -> dotted path of what it is bound to by an import or an alias
     imported: dict[str, str] = field(default_factory=dict)
     #: module-level names of the notebook's own functions and classes (they hide builtins)
@@ -387,8 +389,9 @@ class _Notebook:
         return _scope_names(body, self.scopes)
 
 
-def _notebook(release_trees: list[ast.Module], submission_trees: list[ast.Module], to_write, machinery) -> _Notebook:
-    nb = _Notebook(to_write, machinery)
+def _notebook(release_trees: list[ast.Module], submission_trees: list[ast.Module], to_write, machinery,
+              check_api=frozenset()) -> _Notebook:
+    nb = _Notebook(to_write, machinery, set(check_api))
     for tree in release_trees:
         for name, how, what in nb.scope_names(tree.body)[0]:
             if how == "import":
@@ -625,7 +628,9 @@ class _Reader:
         if not isinstance(node.ctx, ast.Load) and node.attr in _INTERNALS:
             risky_attr = None  # `f.__code__ = ...` is reported as the assignment it is
         literal_sys_modules = any(_dotted(a) == "sys.modules" for a in chain)  # flagged as such already
-        if path.startswith("get_ipython()"):
+        if (reason := self._course_internals(path)) is not None:
+            self.flag(node, f"uses `{written}`{_via(written, path)}, {reason}")
+        elif path.startswith("get_ipython()"):
             self.flag(node, f"uses `{written}`{_via(written, path)}, {_SHELL}")
         elif path in _GET_IPYTHON:
             self.flag(node, f"uses `{written}` without calling it for a magic, {_SHELL}")
@@ -646,6 +651,17 @@ class _Reader:
             self.visit_Call(base, shell_base=True)  # reported above as part of the chain
         elif not isinstance(base, ast.Name):
             self.visit(base)
+
+    def _course_internals(self, path: str) -> str | None:
+        """Why using the course object at ``path`` is flagged: the graders' own code beyond
+        the checks the release calls (it computes the expected values), or a private name."""
+        parts = path.split(".")
+        if parts[:2] == ["kalman_course", "checks"] and len(parts) > 2 \
+                and (len(parts) > 3 or parts[2] not in self.nb.check_api):
+            return "the graders' own code (it computes the expected values)"
+        if parts[0] == "kalman_course" and any(p.startswith("_") and not p.startswith("__") for p in parts):
+            return "a private name of the course's code"
+        return None
 
     def visit_Call(self, node, shell_base: bool = False):
         func = node.func
@@ -840,6 +856,8 @@ def _cell_flags(tree: ast.Module, nb: _Notebook) -> set[str]:
                     flags.add(f"imports `{a.name}` from `{module}` instead of writing it")
                 elif _is_machinery(module) or _is_machinery(f"{module}.{a.name}"):
                     flags.add(f"imports `{a.name}` from `{module}`")
+                elif module.startswith("kalman_course") and a.name.startswith("_"):
+                    flags.add(f"imports `{a.name}` from `{module}`, a private name of the course's code")
                 elif module.split(".", 1)[0] in _ESCAPES:
                     flags.add(f"imports from `{module}`")
         elif isinstance(node, (ast.Assign, ast.AugAssign, ast.AnnAssign)):
@@ -905,7 +923,8 @@ def review_flags(submission, release) -> list[str]:
     all_trees = [*release_trees, *(t for c in submission.cells if c.cell_type == "code" and (t := parse(c.source)))]
     for tree in {id(t): t for t in all_trees}.values():  # a cell the learner left as released is read once
         machinery |= _machinery_names(tree)
-    nb = _notebook(release_trees, learner_trees, to_write, machinery)
+    check_api = {"CheckFailed", "SUCCESS", *(grader_info(c)[0] for c in released.values() if grader_info(c))}
+    nb = _notebook(release_trees, learner_trees, to_write, machinery, check_api)
 
     out = []
     for cell in learner_cells:
