@@ -314,6 +314,14 @@ FORGERIES = {
                                         "`histogram_predict` only returns what `circular_motion_model` "
                                         "(`kalman_course.filters.bayes.circular_motion_model`) returns, "
                                         "a course function, instead of doing the work"),
+    # a function to write that calls a course function its solution does not (the reference of a
+    # graded answer under another name, in more than one line)
+    "course-function-the-solution-does-not-call": ("def histogram_predict(belief, transition):\n"
+                                                   "    predicted = circular_motion_model(belief, transition)\n"
+                                                   "    return predicted",
+                                                   "`histogram_predict` calls `circular_motion_model` "
+                                                   "(`kalman_course.filters.bayes.circular_motion_model`), a course "
+                                                   "function that the exercise's version of it does not use"),
     # signalling the process that runs the grading
     "kill": ("import os, signal\nos.kill(os.getppid(), signal.SIGKILL)",
              "uses `os.kill`, which signals other processes"),
@@ -375,9 +383,6 @@ HONEST = {
     "in-place-array-updates": "belief = np.full(5, 0.2)\nbelief /= belief.sum()\nbelief[0] = 1.0",
     "exceptions": "try:\n    1 / 0\nexcept ZeroDivisionError as error:\n    print(error)",
     "globals-read": "print(sorted(globals())[:3])",
-    "function-to-write-that-also-calls-a-course-function": ("def histogram_predict(belief, transition):\n"
-                                                            "    shape = circular_motion_model(len(belief)).shape\n"
-                                                            "    return transition @ belief"),
     "exits": "import os\nif False:\n    os._exit(1)",
     "own-check-runs": ("try:\n    checks.histogram_update(lambda p, l: p)\nexcept checks.CheckFailed as error:\n"
                        "    print(error)"),

@@ -28,20 +28,14 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from kalman_course.tooling.cells import (CHECK_OUTPUT_TAG, FIX_THIS, GRADER_TAG,  # noqa: F401 (re-exported)
+                                         IGNORE_OUTPUT_TAG, AuthoringError, grader_info)
 from kalman_course.tooling.notebooks import normalise, notebook_text
+from kalman_course.tooling.review import solution_course_calls
 
 BEGIN_RE = re.compile(r"^(?P<indent>[ \t]*)# BEGIN SOLUTION (?P<check>[A-Za-z_][\w]*)[ \t]*$")
 STUB_RE = re.compile(r"^[ \t]*# STUB[ \t]*$")
 END_RE = re.compile(r"^[ \t]*# END SOLUTION[ \t]*$")
-FIX_THIS = "# fix this"
-
-GRADER_TAG = "grader"
-CHECK_OUTPUT_TAG = "nbval-check-output"
-IGNORE_OUTPUT_TAG = "nbval-ignore-output"
-
-
-class AuthoringError(ValueError):
-    """A solution notebook's markers or grader cells are malformed."""
 
 
 @dataclass(frozen=True)
@@ -120,17 +114,6 @@ def _parse_regions(source: str, where: str):
     if plain:
         pieces.append("\n".join(plain))
     return pieces
-
-
-def grader_info(cell) -> tuple[str, int] | None:
-    """Return (check name, points) if ``cell`` is a grader cell, else None."""
-    if cell.cell_type != "code" or GRADER_TAG not in cell.metadata.get("tags", []):
-        return None
-    meta = cell.metadata.get("kalman_course", {})
-    if "check" not in meta or not isinstance(meta.get("points"), int) or meta["points"] <= 0:
-        raise AuthoringError(f"grader cell {cell.get('id')!r} needs metadata "
-                             "kalman_course = {'check': NAME, 'points': positive int}")
-    return meta["check"], meta["points"]
 
 
 def list_stubs(nb) -> list[Stub]:
@@ -225,6 +208,9 @@ def build_exercise(solution_path: str | Path):
         "chapter": chapter_of(solution_path),
         "source": f"solutions/{solution_path.name}",
         "graders": graders,
+        # what a correct version of each function to write calls of the course's code: the
+        # review's baseline (a learner calling anything else of it is worth a look)
+        "course_calls": solution_course_calls(nb, ex),
         "generated": "by `kalman-course build`; edit the solution, not this file",
     }
     return normalise(ex)

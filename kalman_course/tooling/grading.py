@@ -26,7 +26,7 @@ import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from kalman_course.tooling.authoring import CHECK_OUTPUT_TAG, GRADER_TAG, grader_info
+from kalman_course.tooling.cells import CHECK_OUTPUT_TAG, GRADER_TAG, grader_info
 from kalman_course.tooling.notebooks import NotebookError, read_notebook
 from kalman_course.tooling.review import review_flags
 

@@ -58,7 +58,7 @@ import builtins
 import re
 from dataclasses import dataclass, field
 
-from kalman_course.tooling.authoring import FIX_THIS, grader_info
+from kalman_course.tooling.cells import FIX_THIS, grader_info
 
 __all__ = ["review_flags", "MACHINERY"]
 
@@ -375,6 +375,8 @@ class _Notebook:
     machinery: set[str]
     #: what learner code may use of ``kalman_course.checks``: the release's checks, CheckFailed, SUCCESS
     check_api: set[str] = field(default_factory=set)
+    #: function to write -> the course functions its released version calls
+    released_calls: dict[str, set[str]] = field(default_factory=dict)
     #: module-level name -> dotted path of what it is bound to by an import or an alias
     imported: dict[str, str] = field(default_factory=dict)
     #: module-level names of the notebook's own functions and classes (they hide builtins)
@@ -410,6 +412,10 @@ def _notebook(release_trees: list[ast.Module], submission_trees: list[ast.Module
         for name, how, what in bindings:
             if how == "assign" and what is not None and name not in nb.imported and (path := reader.resolve(what)):
                 nb.imported[name] = path
+    for tree in release_trees:
+        for node in tree.body:
+            if isinstance(node, ast.FunctionDef) and node.name in to_write:
+                nb.released_calls.setdefault(node.name, set()).update(reader.course_calls(node))
     return nb
 
 
@@ -502,15 +508,18 @@ class _Reader:
             if child is not None:
                 self.visit(child)
         self._enter_function(node.args, node.body)
-        if node.name in self.nb.to_write and len(self.scopes) == 1:
-            self._check_delegation(node)
+        if node.name in self.nb.to_write and len(self.scopes) == 1 and not self._check_delegation(node):
+            for path, written in self.course_calls(node, entered=True).items():
+                if path not in self.nb.released_calls.get(node.name, ()):
+                    self.flag(node, f"`{node.name}` calls `{written}`{_via(written, path)}, a course function "
+                                    "that the exercise's version of it does not use")
         for stmt in node.body:
             self.visit(stmt)
         self.scopes.pop()
 
     visit_AsyncFunctionDef = visit_FunctionDef
 
-    def _check_delegation(self, node: ast.FunctionDef):
+    def _check_delegation(self, node: ast.FunctionDef) -> bool:
         """A function the learner must write whose whole work is one call of a course function
         (``return chi2_bounds(dof, n, confidence)``): the reference, under another name."""
         body = node.body[1:] if _str(getattr(node.body[0], "value", None)) is not None else node.body  # docstring
@@ -520,6 +529,22 @@ class _Reader:
                 written = _text(body[0].value.func)
                 self.flag(node, f"`{node.name}` only returns what `{written}`{_via(written, callee)} returns, "
                                 "a course function, instead of doing the work")
+                return True
+        return False
+
+    def course_calls(self, node: ast.FunctionDef, entered: bool = False) -> dict[str, str]:
+        """The course functions ``node``'s body calls: resolved path -> as written.
+
+        ``entered``: the function's scope is already on the stack (while visiting it).
+        """
+        if not entered:
+            self._enter_function(node.args, node.body)
+        try:
+            return {path: _text(call.func) for stmt in node.body for call in ast.walk(stmt)
+                    if isinstance(call, ast.Call) and (path := self.resolve(call.func)).startswith("kalman_course.")}
+        finally:
+            if not entered:
+                self.scopes.pop()
 
     def visit_Lambda(self, node):
         self.visit(node.args)
@@ -895,6 +920,28 @@ def _functions_to_write(release, parse) -> set[str]:
     return names
 
 
+def solution_course_calls(solution, exercise) -> dict[str, list[str]]:
+    """For each function the exercise asks for, the course functions its solution calls.
+
+    Parameters
+    ----------
+    solution, exercise : NotebookNode
+        A solution notebook and the exercise built from it (which names the functions to
+        write: those with a ``# fix this`` line).
+
+    Returns
+    -------
+    dict of str to list of str
+        Function name -> sorted dotted paths (``kalman_course.so3.Exp``); stored in the
+        exercise's metadata, where :func:`review_flags` reads it.
+    """
+    parse = _parser()
+    to_write = _functions_to_write(exercise, parse)
+    trees = [t for c in solution.cells if c.cell_type == "code" and not grader_info(c) and (t := parse(c.source))]
+    nb = _notebook(trees, [], to_write, set())
+    return {name: sorted(paths) for name, paths in sorted(nb.released_calls.items())}
+
+
 def review_flags(submission, release) -> list[str]:
     """Reasons to review ``submission`` by hand, one line each (empty when there are none).
 
@@ -925,6 +972,9 @@ def review_flags(submission, release) -> list[str]:
         machinery |= _machinery_names(tree)
     check_api = {"CheckFailed", "SUCCESS", *(grader_info(c)[0] for c in released.values() if grader_info(c))}
     nb = _notebook(release_trees, learner_trees, to_write, machinery, check_api)
+    solution_calls = release.metadata.get("kalman_course", {}).get("course_calls", {})
+    for name, paths in solution_calls.items():
+        nb.released_calls.setdefault(name, set()).update(paths)
 
     out = []
     for cell in learner_cells:

@@ -1,0 +1,29 @@
+"""What marks a cell in the course's notebooks: grader cells, their tags, the learner's fix lines.
+
+Shared by the exercise builder, the grader and the code review (so that none of them
+imports another for a constant).
+"""
+
+from __future__ import annotations
+
+#: The comment that ends every stub line a learner must fix.
+FIX_THIS = "# fix this"
+
+GRADER_TAG = "grader"
+CHECK_OUTPUT_TAG = "nbval-check-output"
+IGNORE_OUTPUT_TAG = "nbval-ignore-output"
+
+
+class AuthoringError(ValueError):
+    """A solution notebook's markers or grader cells are malformed."""
+
+
+def grader_info(cell) -> tuple[str, int] | None:
+    """Return (check name, points) if ``cell`` is a grader cell, else None."""
+    if cell.cell_type != "code" or GRADER_TAG not in cell.metadata.get("tags", []):
+        return None
+    meta = cell.metadata.get("kalman_course", {})
+    if "check" not in meta or not isinstance(meta.get("points"), int) or meta["points"] <= 0:
+        raise AuthoringError(f"grader cell {cell.get('id')!r} needs metadata "
+                             "kalman_course = {'check': NAME, 'points': positive int}")
+    return meta["check"], meta["points"]
