@@ -430,3 +430,6 @@ def test_code_nested_too_deeply_to_walk_is_a_flag_not_a_failure():
     assert _extra_flags("x = " + " + ".join(["1"] * 200)) == []
     assert _extra_flags("x = " + " + ".join(["1"] * 3000)) == [
         "cell extra: nests code too deeply for the review to read it"]
+    # deeper still, the parser itself gives up (where exactly depends on the stack left)
+    assert _extra_flags("x = " + " + ".join(["1"] * 30000)) == [
+        "cell extra: nests code too deeply for the review to read it"]

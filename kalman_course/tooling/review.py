@@ -73,6 +73,7 @@ _PYTHON_LINE_MAGICS = frozenset({"time", "timeit", "prun", "debug"})
 _PYTHON_CELL_MAGICS = frozenset({"time", "timeit", "prun", "debug", "capture", "writefile", "file",
                                  "python", "python3", "pypy"})
 
+_TOO_DEEP = "nests code too deeply for the review to read it"
 _RUNS = "which runs code the review cannot read"
 _BUILDS = "which builds a function from a code object"
 _LOADS = "which loads objects or code from bytes"
@@ -160,6 +161,9 @@ def _parser():
                 tree = ast.parse(transformed)
             except (SyntaxError, ValueError):
                 tree, transformed = None, ""  # the learner's own error; the run reports it
+            except RecursionError:  # nested too deeply for the parser (how deep depends on the stack)
+                tree, transformed = ast.Module(body=[], type_ignores=[]), ""
+                tree.too_deep = True
             # only magics (``get_ipython().run_line_magic(...)``) run Python of their own; a magic
             # inside a magic's body is read too, not endlessly
             if tree is not None and depth < 3 and "get_ipython" in transformed:
@@ -867,6 +871,8 @@ def _rebinding_flags(tree: ast.Module, nb: _Notebook) -> set[str]:
 
 def _cell_flags(tree: ast.Module, nb: _Notebook) -> set[str]:
     """The flags of one cell, without its id (so that they can be compared with the release)."""
+    if getattr(tree, "too_deep", False):
+        return {_TOO_DEEP}
     to_write, machinery = nb.to_write, nb.machinery
     flags = set()
     for node in ast.walk(tree):
@@ -908,7 +914,7 @@ def _cell_flags(tree: ast.Module, nb: _Notebook) -> set[str]:
     try:
         reader.visit(tree)
     except RecursionError:  # the walk recurses; code nested this deeply is worth reading by hand anyway
-        reader.flags.add("nests code too deeply for the review to read it")
+        reader.flags.add(_TOO_DEEP)
     return flags | reader.flags | _rebinding_flags(tree, nb)
 
 
