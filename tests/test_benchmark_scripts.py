@@ -40,3 +40,26 @@ def test_check_times_rejects_zero_repeats(root):
     out = subprocess.run([sys.executable, "benchmarks/check_times.py", "--repeats", "0"],
                          cwd=root, capture_output=True, text=True, timeout=60)
     assert out.returncode == 2 and "must be at least 1" in out.stderr
+
+
+def test_class_throughput_builds_the_class_and_finds_each_trees_command(root, tmp_path):
+    sys.path.insert(0, str(root / "benchmarks"))
+    try:
+        import class_throughput
+    finally:
+        sys.path.remove(str(root / "benchmarks"))
+    count = class_throughput.make_class(root, tmp_path / "class")
+    per_learner = len(list((root / "exercises").glob("[0-9][0-9]_*.ipynb"))) + \
+        len(list((root / "solutions").glob("[0-9][0-9]_*.ipynb")))
+    assert count == 2 * per_learner == len(list((tmp_path / "class").rglob("*.ipynb")))
+    assert class_throughput._entry_point(root) == ("kalman_course.tooling.cli", "main")
+    old = tmp_path / "old"
+    old.mkdir()
+    (old / "pyproject.toml").write_text('[project.scripts]\nkalman-course = "kalman_course.cli:main"\n')
+    assert class_throughput._entry_point(old) == ("kalman_course.cli", "main")
+
+
+def test_class_throughput_rejects_zero_pairs(root):
+    out = subprocess.run([sys.executable, "benchmarks/class_throughput.py", "HEAD", "--pairs", "0"],
+                         cwd=root, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2 and "--pairs and --jobs must be at least 1" in out.stderr

@@ -39,7 +39,9 @@ class _ThisPython(KernelSpecManager):
 
     def get_kernel_spec(self, kernel_name):
         return KernelSpec(argv=[sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}",
-                                "--log-level=ERROR"],  # no start-up notices on the grader's stderr
+                                "--log-level=ERROR",  # no start-up notices on the grader's stderr
+                                # no history database shared between learners' kernels
+                                "--HistoryManager.enabled=False"],
                           display_name="Python 3", language="python", name=kernel_name)
 
 
@@ -76,14 +78,19 @@ class KernelSession(Session):
         env = dict(os.environ)
         env["MPLBACKEND"] = "Agg"  # plots are not graded: draw them nowhere (no PNG rendering)
         env["PYDEVD_DISABLE_FILE_VALIDATION"] = "1"  # no debugger warning on stderr
+        env["IPYTHONDIR"] = os.path.join(cwd, ".ipython")  # a profile of its own: no shared start-up files
         self.km = KernelManager(kernel_spec_manager=_ThisPython(), kernel_name="python3")
         self.km.start_kernel(cwd=cwd, env=env)
         self.kc = None
 
+    def _connect(self) -> None:
+        if self.kc is None:
+            self.kc = self.km.client()
+            self.kc.start_channels()
+
     def wait_until_ready(self, timeout: float = 60.0) -> None:
         """Block until the kernel answers (start it first; overlap other work with this)."""
-        self.kc = self.km.client()
-        self.kc.start_channels()
+        self._connect()
         try:
             self.kc.wait_for_ready(timeout=timeout)
         except RuntimeError as exc:
