@@ -4,7 +4,8 @@ Subcommands
 -----------
 execute   run lecture/solution notebooks in place and store their outputs
 build     write exercises/ from solutions/ (``--check`` verifies they are in sync)
-grade     grade exercise notebooks and print a points table
+grade     grade exercise notebooks and print a points table (``--shard K/N``: one part of a class)
+merge     combine the shards' JSON gradebooks into the class's gradebooks and feedback
 export    write the derivations as LaTeX/Markdown, or the lectures as offline HTML
 bench     measure speed, accuracy and consistency and write a Markdown report
 data      rebuild the shipped KITTI excerpts from the PyPI packages
@@ -92,8 +93,22 @@ def _cmd_grade(args: argparse.Namespace) -> int:
         print(f"[{done}/{total}] {who}{r.path}: {r.status}, {r.points}/{r.possible} points "
               f"({r.seconds:.1f} s)", flush=True)
 
+    class_size = len(submissions)
+    positions = list(range(class_size))
+    if args.shard:
+        positions = grading.shard_of(submissions, *args.shard)
+        submissions = [submissions[i] for i in positions]
+        print(f"shard {args.shard[0]}/{args.shard[1]}: {len(submissions)} of {class_size} notebooks", flush=True)
     jobs = args.jobs or os.cpu_count() or 1
-    results = grading.grade_many(submissions, release, timeout=args.timeout, jobs=jobs, progress=progress)
+    results = grading.grade_many(submissions, release, timeout=args.timeout, jobs=jobs, progress=progress,
+                                 order=positions, class_size=class_size)
+    return _report(results, args)
+
+
+def _report(results, args) -> int:
+    """Print the table and summary, write the gradebooks asked for; the exit status."""
+    from kalman_course.tooling import grading
+
     print()
     print(grading.format_table(results))
     print(grading.format_summary(results))
@@ -107,6 +122,34 @@ def _cmd_grade(args: argparse.Namespace) -> int:
         written = grading.write_feedback(results, args.feedback)
         print(f"wrote {len(written)} feedback file(s) to {args.feedback}")
     return 0 if all(r.status in grading.RAN_TO_THE_END for r in results) else 1
+
+
+def _cmd_merge(args: argparse.Namespace) -> int:
+    from kalman_course.tooling import grading
+
+    try:
+        results = grading.merge_results([grading.read_json(path) for path in args.gradebooks])
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    return _report(results, args)
+
+
+def _shard(text: str) -> tuple[int, int]:
+    """``K/N`` of ``--shard``, checked."""
+    try:
+        k, n = (int(part) for part in text.split("/"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected K/N (shard K of N), got {text!r}") from None
+    if not 1 <= k <= n:
+        raise argparse.ArgumentTypeError(f"expected K/N with 1 <= K <= N, got {text!r}")
+    return k, n
+
+
+def _add_gradebook_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--csv", help="also write the gradebook as CSV to this file")
+    p.add_argument("--json", help="also write the full results as JSON to this file")
+    p.add_argument("--feedback", help="write one Markdown feedback file per learner into this folder")
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
@@ -184,12 +227,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--release", default="exercises",
                    help="folder of the released exercises whose grader cells are trusted (default exercises)")
     p.add_argument("--timeout", type=float, default=120.0, help="per-cell timeout in seconds (default 120)")
-    p.add_argument("--csv", help="also write the gradebook as CSV to this file")
-    p.add_argument("--json", help="also write the full results as JSON to this file")
-    p.add_argument("--feedback", help="write one Markdown feedback file per learner into this folder")
+    _add_gradebook_options(p)
     p.add_argument("--jobs", type=int, default=0,
                    help="submissions graded in parallel, each in its own kernel (default: number of cores)")
+    p.add_argument("--shard", type=_shard, metavar="K/N",
+                   help="grade only shard K of N (learners dealt round-robin); combine with `merge`")
     p.set_defaults(func=_cmd_grade)
+
+    p = sub.add_parser("merge", help="combine the JSON gradebooks of a class's shards into one")
+    p.add_argument("gradebooks", nargs="+", help="the shards' --json files")
+    _add_gradebook_options(p)
+    p.set_defaults(func=_cmd_merge)
 
     p = sub.add_parser("export", help="export derivations (LaTeX/Markdown) or lectures (HTML)")
     p.add_argument("what", choices=["derivations", "notebooks"])

@@ -67,7 +67,10 @@ class NotebookResult:
     learner_errors: list[str] = field(default_factory=list)
     flags: list[str] = field(default_factory=list)
     detail: str = ""
-    seconds: float = 0.0
+    #: its place in the whole class (a shard's gradebook keeps it, so that merging restores the order)
+    order: int = 0
+    class_size: int = 1
+    seconds: float = 0.0  # not in the gradebook: it would differ between two runs
 
     @property
     def points(self) -> int:
@@ -442,23 +445,32 @@ def _grade_one(item):
 
 
 def grade_many(submissions: list[tuple], release: dict, *, timeout: float = 120.0,
-               jobs: int = 1, progress=None, compare: bool = False) -> list[NotebookResult]:
+               jobs: int = 1, progress=None, compare: bool = False, order=None,
+               class_size: int | None = None) -> list[NotebookResult]:
     """Grade (path, learner) pairs, ``jobs`` at a time, each in its own kernel.
 
     A submission may also be given already read, as ((file name, notebook), learner).
     With ``jobs`` > 1 each job is a worker process that grades one notebook after another
     (a fresh kernel for each). ``progress(done, total, result)`` is called as each one
     finishes. One submission's failure never stops the others. ``compare``: see
-    :func:`grade_notebook`.
+    :func:`grade_notebook`. ``order`` and ``class_size``: the submissions' places in the
+    whole class when they are one shard of it (default: they are the class).
     """
     items = [(s, release, timeout, compare) for s in submissions]
     results: list[NotebookResult | None] = [None] * len(items)
+    positions = list(range(len(items))) if order is None else list(order)
+    class_size = len(items) if class_size is None else class_size
+
+    def place(i):
+        results[i].order, results[i].class_size = positions[i], class_size
+        return results[i]
+
     if jobs <= 1 or len(items) <= 1:
         for i, item in enumerate(items):
             results[i] = _grade_one(item)
             if progress:
-                progress(i + 1, len(items), results[i])
-        return results
+                progress(i + 1, len(items), place(i))
+        return [place(i) for i in range(len(items))]
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     with ProcessPoolExecutor(max_workers=min(jobs, len(items)), initializer=_keep_a_spare_kernel) as pool:
@@ -466,8 +478,8 @@ def grade_many(submissions: list[tuple], release: dict, *, timeout: float = 120.
         for done, future in enumerate(as_completed(futures), 1):
             results[futures[future]] = future.result()
             if progress:
-                progress(done, len(items), results[futures[future]])
-    return results
+                progress(done, len(items), place(futures[future]))
+    return [place(i) for i in range(len(items))]
 
 
 def format_summary(results: list[NotebookResult]) -> str:
@@ -554,6 +566,7 @@ def format_table(results: list[NotebookResult]) -> str:
 
 def write_csv(results: list[NotebookResult], path: str | Path) -> None:
     """Write one row per notebook: learner, chapter, status, points, each check's points, restored cells, review flags."""
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
     with open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
         w.writerow(["learner", "notebook", "chapter", "status", "points", "possible", "checks",
@@ -564,11 +577,72 @@ def write_csv(results: list[NotebookResult], path: str | Path) -> None:
                         ";".join(r.tampered), ";".join(r.readded), " | ".join(r.flags), r.hint])
 
 
+def shard_of(submissions: list[tuple], k: int, n: int) -> list[int]:
+    """The positions in ``submissions`` ((path, learner) pairs) that shard ``k`` of ``n`` grades.
+
+    Learners are dealt round-robin in sorted order, so each learner's notebooks stay in one
+    shard (one feedback file each) and the shards differ in size by at most one learner.
+    """
+    if not 1 <= k <= n:
+        raise ValueError(f"shard must be K/N with 1 <= K <= N, got {k}/{n}")
+    learners = sorted({learner for _, learner in submissions})
+    mine = {learner for i, learner in enumerate(learners) if i % n == k - 1}
+    return [i for i, (_, learner) in enumerate(submissions) if learner in mine]
+
+
 def write_json(results: list[NotebookResult], path: str | Path) -> None:
     """Write the full results (every check's message included) as JSON."""
     data = [dict(asdict(r), points=r.points, possible=r.possible, hint=r.hint) for r in results]
     for record in data:
+        del record["seconds"]
         for c in record["checks"]:
             if c["in_kernel"] is None:
                 del c["in_kernel"]
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
     Path(path).write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
+
+
+def read_json(path: str | Path) -> list[NotebookResult]:
+    """The results of a gradebook written by :func:`write_json` (a whole class or one shard).
+
+    Raises
+    ------
+    ValueError
+        If the file is not such a gradebook (the message names the file and what is wrong).
+    """
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+        names = {f for f in NotebookResult.__dataclass_fields__ if f != "seconds"}
+        results = []
+        for record in data:
+            fields = {k: v for k, v in record.items() if k in names}
+            fields["checks"] = [CheckResult(**c) for c in fields.get("checks", [])]
+            results.append(NotebookResult(**fields))
+    except (OSError, ValueError, TypeError, AttributeError) as exc:
+        raise ValueError(f"{path}: not a gradebook written by `kalman-course grade --json` "
+                         f"({type(exc).__name__}: {exc})") from None
+    return results
+
+
+def merge_results(shards: list[list[NotebookResult]]) -> list[NotebookResult]:
+    """One class's results from its shards' gradebooks, in the order one run gives.
+
+    Raises
+    ------
+    ValueError
+        If the shards are not of one class, overlap, or miss part of it.
+    """
+    results = [r for shard in shards for r in shard]
+    sizes = {r.class_size for r in results}
+    if len(sizes) > 1:
+        raise ValueError(f"the gradebooks are of different classes (class sizes {sorted(sizes)})")
+    orders = sorted(r.order for r in results)
+    expected = list(range(sizes.pop() if sizes else 0))
+    if orders != expected:
+        missing = sorted(set(expected) - set(orders))
+        twice = sorted({o for o in orders if orders.count(o) > 1})
+        raise ValueError("the gradebooks do not make up one class: "
+                         + (f"notebooks {missing[:10]} are missing (a shard not merged?)" if missing else "")
+                         + ("; " if missing and twice else "")
+                         + (f"notebooks {twice[:10]} are in two gradebooks" if twice else ""))
+    return sorted(results, key=lambda r: r.order)
