@@ -190,3 +190,21 @@ def test_a_failing_review_never_costs_the_grade(tmp_path, monkeypatch):
     result = grading.grade_notebook(path, {"07": _release()})
     assert (result.status, result.points) == (grading.GRADED, 2)
     assert result.flags == ["the code review failed (RecursionError); read the notebook by hand"]
+
+
+@pytest.mark.slow
+def test_a_dead_kernel_is_noticed_within_two_seconds(tmp_path):
+    import time
+
+    from conftest import ROOT
+
+    release = grading.load_release(ROOT / "exercises")
+    nb = grading.read_notebook(ROOT / "exercises" / "01_bayes_rule.ipynb")
+    stamp = tmp_path / "died_at"
+    first_code = next(i for i, c in enumerate(nb.cells) if c.cell_type == "code")
+    nb.cells[first_code].source = (f"import os, time\nopen({str(stamp)!r}, 'w').write(repr(time.time()))\n"
+                                   "os._exit(1)")
+    result = grading.grade_submission(nb, release, grading.NotebookResult("01_bayes_rule.ipynb"), timeout=60)
+    noticed = time.time() - float(stamp.read_text())
+    assert result.status == grading.KERNEL_DIED and result.points == 0
+    assert noticed < 2.0, f"the dead kernel was noticed after {noticed:.1f} s"

@@ -12,6 +12,8 @@ from __future__ import annotations
 import os
 import queue
 import shutil
+import signal
+import subprocess
 import sys
 import tempfile
 import time
@@ -100,9 +102,21 @@ class KernelSession(Session):
         """Stop the kernel and remove the request files."""
         if self.kc is not None:
             self.kc.stop_channels()
+        process = getattr(getattr(self.km, "provisioner", None), "process", None)
         try:
-            self.km.shutdown_kernel(now=True)
-        except Exception:  # already dead
+            if process is not None and os.name == "posix":
+                # SIGKILL to the kernel's process group (what it started too), then reap it: the
+                # same end as shutdown_kernel(now=True) without its 0.1 s polling
+                group = os.getpgid(process.pid)
+                if group != os.getpgid(0):
+                    os.killpg(group, signal.SIGKILL)
+                else:
+                    process.kill()
+                process.wait(timeout=10)
+                self.km.cleanup_resources()
+            else:
+                self.km.shutdown_kernel(now=True)
+        except (OSError, subprocess.TimeoutExpired):  # already gone
             pass
         shutil.rmtree(self.folder, ignore_errors=True)
 
