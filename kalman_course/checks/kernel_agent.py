@@ -1,11 +1,11 @@
 """The grading process's hand inside the learner's kernel: run learner code on plain data.
 
 ``kalman-course grade`` runs the learner's cells in their own kernel and the checks in the
-grading process. When a check calls a learner function, the grading process writes the
-call to a file and executes ``serve(globals(), request, response)`` in the kernel: this
-module decodes the arguments (:mod:`plain_data`), calls the function exactly as a grader
-cell would (prints and warnings silenced, floating-point warnings off, arguments fresh
-copies), and writes back the result as plain data, or the exception it raised.
+grading process. When a check calls a learner function, the grading process sends the
+call as a comm message (:func:`listen` registered the target before the learner's cells
+ran): this module decodes the arguments (:mod:`plain_data`), calls the function exactly as
+a grader cell would (prints and warnings silenced, floating-point warnings off, arguments
+fresh copies), and sends back the result as plain data, or the exception it raised.
 
 Nothing here knows an expected value, and nothing the kernel sends back is trusted beyond
 being data: a learner who replaces this module only changes what their own functions
@@ -127,11 +127,28 @@ def answer(namespace: dict, request: str, handles: dict | None = None) -> str:
         return plain_data.encode({"result": plain_data.Opaque(type(result).__name__)}, towards_kernel=False)
 
 
-def serve(namespace: dict, request_path: str, response_path: str) -> None:
-    """:func:`answer` the request in file ``request_path`` into file ``response_path``
-    (what the grading process executes in the kernel)."""
-    with open(request_path, encoding="utf-8") as fh:
-        request = fh.read()
-    reply = answer(namespace, request)
-    with open(response_path, "w", encoding="utf-8") as fh:
-        fh.write(reply)
+#: The Jupyter comm target on which the grading process sends its requests.
+COMM_TARGET = "kalman_course.grading"
+
+
+def listen(shell, namespace: dict) -> None:
+    """Answer the grading process's requests that arrive on a comm (see :data:`COMM_TARGET`).
+
+    The grading process runs this in a fresh kernel before any learner cell. A comm message
+    reaches the kernel without passing through IPython's cell machinery, so a request costs
+    about a millisecond; each one is a JSON text in ``data["request"]``, answered in
+    ``data["answer"]``.
+
+    Parameters
+    ----------
+    shell : IPython shell
+        ``get_ipython()`` of the kernel.
+    namespace : dict
+        The notebook's globals.
+    """
+    def opened(comm, open_msg):
+        @comm.on_msg
+        def on_request(msg):
+            comm.send({"answer": answer(namespace, msg["content"]["data"]["request"])})
+
+    shell.kernel.comm_manager.register_target(COMM_TARGET, opened)

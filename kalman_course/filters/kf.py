@@ -121,13 +121,91 @@ def _update(x_check, P_check, y, G, CRCt, joseph, I, P_out=None):
     innovation = y - dot(G, x_check)                               # e = y − G x̌
     GP = dot(G, P_check)                                           # G P̌, (m, n)
     S = linalg.innovation_covariance(GP, G, CRCt)                  # S = G P̌ Gᵀ + C R Cᵀ
-    K = linalg.gain(GP, S)                                         # K = P̌ Gᵀ S⁻¹
+    K, Z = linalg.whitened_gain(GP, S)                             # K = P̌ Gᵀ S⁻¹, Z = L⁻¹ G P̌
     x_hat = x_check + dot(K, innovation)                           # x̂ = x̌ + K e
-    if joseph:                                   # P̂ = (I − K G) P̌ (I − K G)ᵀ + K C R Cᵀ Kᵀ
+    if joseph or Z is None:                      # P̂ = (I − K G) P̌ (I − K G)ᵀ + K C R Cᵀ Kᵀ
+        # (also when S has no Cholesky factor in float64: K then is an LU solve's, and the
+        # Joseph form is right for any gain)
         P_hat = linalg.joseph_update(P_check, K, G, CRCt, I, P_out)
-    else:                                        # P̂ = P̌ − K G P̌
-        P_hat = linalg.short_update(P_check, K, GP, P_out)
+    else:                                        # P̂ = P̌ − K G P̌ = P̌ − Zᵀ Z
+        P_hat = linalg.whitened_update(P_check, Z, P_out)
     return x_hat, P_hat, innovation, S, K
+
+
+# ---------------------------------------------------------------------------------------
+# validate once: the model's matrices, remembered by content
+# ---------------------------------------------------------------------------------------
+
+# A learner's loop calls kf_predict and kf_update with the same F, Q, G, R at every step;
+# validating them again costs more than the step's arithmetic (Q of the CV model is
+# singular, so its check takes eigenvalues). Validation is a function of an argument's
+# dtype, shape and values only, so a float64 array whose bytes equal those of one that
+# passed needs no second check. The remembered result is a private, read-only copy: a
+# caller who writes into an argument later changes its bytes, so it is validated again.
+_MODEL_MEMO: dict[tuple, np.ndarray] = {}
+_MODEL_MEMO_SIZE = 64
+_IDENTITY: dict[int, np.ndarray] = {}
+
+
+def _content(value):
+    """(shape, bytes) of a float64 ndarray, None for None, False for anything else."""
+    if value is None:
+        return None
+    if type(value) is np.ndarray and value.dtype == np.float64:
+        return value.shape, value.tobytes()
+    return False
+
+
+def _validated_model(kind, value, jacobian, dim, validate):
+    """``validate(value, jacobian, dim)``, or its remembered result for the same content.
+
+    Parameters
+    ----------
+    kind : str
+        Which argument pair this is (part of the key: the same bytes may be valid as one
+        and not as another).
+    value, jacobian : array_like or None
+        The arguments validated together (Q and B, R and C, or F and None).
+    dim : int or tuple
+        The dimensions they must match.
+    validate : callable
+        The :mod:`kalman_course.core.validation` call; it raises the ValueError naming
+        the argument.
+
+    Returns
+    -------
+    numpy.ndarray
+        The validated (and, for Q with B or R with C, mapped) matrix; read-only when it
+        comes from the memo.
+    """
+    key = (kind, dim, _content(value), _content(jacobian))
+    if False in key:                            # lists, other dtypes: validated every time
+        return validate(value, jacobian, dim)
+    result = _MODEL_MEMO.get(key)
+    if result is None:
+        result = np.array(validate(value, jacobian, dim))    # a copy the caller cannot touch
+        result.flags.writeable = False
+        if len(_MODEL_MEMO) >= _MODEL_MEMO_SIZE:
+            _MODEL_MEMO.clear()
+        _MODEL_MEMO[key] = result
+    return result
+
+
+def _transition(F, _, n):
+    return as_matrix(F, "F", (n, n))
+
+
+def _observation_jacobian(G, _, shape):
+    return as_matrix(G, "G", shape)
+
+
+def _identity(n):
+    """The (n, n) identity, made once per n and read-only."""
+    I = _IDENTITY.get(n)
+    if I is None:
+        I = _IDENTITY[n] = np.eye(n)
+        I.flags.writeable = False
+    return I
 
 
 # ---------------------------------------------------------------------------------------
@@ -173,8 +251,8 @@ def kf_predict(x_hat, P_hat, F, Q, B=None, v=None):
     x_hat = as_vector(x_hat, "x_hat")
     n = x_hat.shape[0]
     P_hat = as_covariance(P_hat, "P_hat", n, psd=True)
-    F = as_matrix(F, "F", (n, n))
-    BQBt = as_process_noise(Q, B, n)
+    F = _validated_model("F", F, None, n, _transition)
+    BQBt = _validated_model("Q", Q, B, n, as_process_noise)
     if v is not None:
         v = as_vector(v, "v", n)
     return _predict(x_hat, P_hat, F, BQBt, v)
@@ -296,10 +374,10 @@ def kf_update(x_check, P_check, y, G, R, C=None, joseph=False):
     P_check = as_covariance(P_check, "P_check", n, psd=True)
     y = as_vector(y, "y")
     m = y.shape[0]
-    G = as_matrix(G, "G", (m, n))
-    CRCt = as_observation_noise(R, C, m)
+    G = _validated_model("G", G, None, (m, n), _observation_jacobian)
+    CRCt = _validated_model("R", R, C, m, as_observation_noise)
     joseph = as_flag(joseph, "joseph")
-    return KFUpdate(*_update(x_check, P_check, y, G, CRCt, joseph, np.eye(n)))
+    return KFUpdate(*_update(x_check, P_check, y, G, CRCt, joseph, _identity(n)))
 
 
 # ---------------------------------------------------------------------------------------

@@ -93,10 +93,29 @@ def kf_speed(n_steps: int = 2000, repeats: int = 7, dim: int = 2) -> dict:
 
     The problem is :func:`kalman_course.data.cv_target` (``dim``-D CV, 2·dim states, dim
     measured), seed 0, Joseph-form covariance update everywhere (FilterPy's ``update``
-    uses it too). With dim ≤ 2 the gain uses the closed-form S⁻¹, with dim = 3 a solve.
-    ``run_kf`` and FilterPy are timed in interleaved pairs; ``ratio`` is the median of the
-    pairs' ratios. Returns a dict of per-step medians (s); ``filterpy`` and ``ratio`` are
-    None if FilterPy is not installed.
+    uses it too). The gain is a Cholesky solve of S written out for dim ≤ 3
+    (:func:`kalman_course.core.linalg.whitened_gain`). The single calls validate their
+    inputs as a learner's loop calls them (the model's matrices are validated once and
+    then recognised by content). Each repeat times FilterPy, ``run_kf`` and the single
+    calls one after the other, so that a change in the machine's load hits all three
+    alike; ``ratio`` (run_kf / FilterPy) and ``calls_ratio`` (single calls / FilterPy)
+    are the medians of the repeats' ratios.
+
+    Parameters
+    ----------
+    n_steps : int
+        Steps of the simulated problem.
+    repeats : int
+        Timed rounds, >= 1.
+    dim : int
+        Spatial dimension of the CV problem (2 or 3).
+
+    Returns
+    -------
+    dict
+        ``n_steps``, ``repeats``, ``dim``; per-step medians (s) ``run_kf``, ``calls`` and
+        ``filterpy``; ``ratio`` and ``calls_ratio``. ``filterpy``, ``ratio`` and
+        ``calls_ratio`` are None if FilterPy is not installed.
     """
     from kalman_course.filters import kf
     from kalman_course.data import cv_target
@@ -117,12 +136,12 @@ def kf_speed(n_steps: int = 2000, repeats: int = 7, dim: int = 2) -> dict:
             x, P = out[0], out[1]
 
     out = {"n_steps": n_steps, "repeats": repeats, "dim": dim}
-    out["calls"] = _median_of(run_calls, max(3, repeats // 2))[0] / n_steps
     try:
         from filterpy.kalman import KalmanFilter
     except ImportError:
         out["run_kf"] = _median_of(run_batch, repeats)[0] / n_steps
-        out["filterpy"] = out["ratio"] = None
+        out["calls"] = _median_of(run_calls, repeats)[0] / n_steps
+        out["filterpy"] = out["ratio"] = out["calls_ratio"] = None
         return out
 
     def run_filterpy():
@@ -133,14 +152,17 @@ def kf_speed(n_steps: int = 2000, repeats: int = 7, dim: int = 2) -> dict:
                 f.predict()
             f.update(ys[k])
 
-    # interleaved, so that a change in the machine's load hits both alike
-    ours, theirs = [], []
+    run_filterpy(), run_batch(), run_calls()             # warm-up: imports, caches
+    theirs, ours, calls = [], [], []
     for _ in range(repeats):
-        ours.append(_median_of(run_batch, 1)[0])
         theirs.append(_median_of(run_filterpy, 1)[0])
+        ours.append(_median_of(run_batch, 1)[0])
+        calls.append(_median_of(run_calls, 1)[0])
     out["run_kf"] = statistics.median(ours) / n_steps
+    out["calls"] = statistics.median(calls) / n_steps
     out["filterpy"] = statistics.median(theirs) / n_steps
     out["ratio"] = statistics.median(a / b for a, b in zip(ours, theirs))
+    out["calls_ratio"] = statistics.median(a / b for a, b in zip(calls, theirs))
     return out
 
 

@@ -2,7 +2,7 @@
 
 The kernel runs the learner's cells one by one, as JupyterLab would, and answers the
 checks' calls of learner functions (:class:`kalman_course.checks.remote.Session`): each
-call is a request file that the kernel's agent reads and answers with a file of plain data.
+call is a comm message of plain data that the kernel's agent answers with another.
 A cell that runs past its time is interrupted; a kernel that dies is noticed within
 :data:`POLL` seconds.
 """
@@ -17,11 +17,13 @@ import subprocess
 import sys
 import tempfile
 import time
+import uuid
 from dataclasses import dataclass
 
 from jupyter_client.kernelspec import KernelSpec, KernelSpecManager
 from jupyter_client.manager import KernelManager
 
+from kalman_course.checks.kernel_agent import COMM_TARGET
 from kalman_course.checks.plain_data import Opaque, Raised, encode
 from kalman_course.checks.remote import KernelLost, Session
 
@@ -32,8 +34,8 @@ INTERRUPT_GRACE = 5.0
 #: Statuses a lost kernel reports (the same words as the gradebook's).
 TIMED_OUT, KERNEL_DIED = "timed out", "kernel died"
 
-_AGENT_CALL = ("__import__('kalman_course.checks.kernel_agent', fromlist=['serve'])"
-               ".serve(globals(), {request!r}, {answer!r})")
+#: Run once in a fresh kernel, before the learner's cells: the agent starts listening.
+_AGENT_LISTEN = "__import__('kalman_course.checks.kernel_agent', fromlist=['listen']).listen(get_ipython(), globals())"
 
 
 class _ThisPython(KernelSpecManager):
@@ -75,14 +77,14 @@ class KernelSession(Session):
         self.timed_out = False
         self.folder = tempfile.mkdtemp(prefix="kalman-grade-")
         cwd = self.folder
-        self._files = tempfile.mkdtemp(prefix="agent-", dir=cwd)
-        self._count = 0
+        self._comm_id = None
         env = dict(os.environ)
         env["MPLBACKEND"] = "Agg"  # plots are not graded: draw them nowhere (no PNG rendering)
         env["PYDEVD_DISABLE_FILE_VALIDATION"] = "1"  # no debugger warning on stderr
         env["IPYTHONDIR"] = os.path.join(cwd, ".ipython")  # a profile of its own: no shared start-up files
         self.km = KernelManager(kernel_spec_manager=_ThisPython(), kernel_name="python3")
-        self.km.start_kernel(cwd=cwd, env=env)
+        # its own log (a KeyboardInterrupt after a timeout, ...) is not the grader's output
+        self.km.start_kernel(cwd=cwd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         self.kc = None
 
     def _connect(self) -> None:
@@ -91,12 +93,19 @@ class KernelSession(Session):
             self.kc.start_channels()
 
     def wait_until_ready(self, timeout: float = 60.0) -> None:
-        """Block until the kernel answers (start it first; overlap other work with this)."""
+        """Block until the kernel answers and its agent listens (start it first; overlap other
+        work with this)."""
         self._connect()
         try:
             self.kc.wait_for_ready(timeout=timeout)
         except RuntimeError as exc:
             raise KernelLost(KERNEL_DIED, f"the kernel did not start ({exc})") from None
+        outcome = self.run_cell(_AGENT_LISTEN, silent=True, timeout=timeout)
+        if outcome.status != "ok":
+            raise KernelLost(KERNEL_DIED, f"the grading agent did not start in the kernel ({outcome.error})")
+        self._comm_id = uuid.uuid4().hex
+        self.kc.shell_channel.send(self.kc.session.msg(
+            "comm_open", content={"comm_id": self._comm_id, "target_name": COMM_TARGET, "data": {}}))
 
     def close(self) -> None:
         """Stop the kernel and remove the request files."""
@@ -185,26 +194,43 @@ class KernelSession(Session):
     # -- the checks' calls -------------------------------------------------------------
 
     def exchange(self, request: str) -> str:
-        self._count += 1
-        req = os.path.join(self._files, f"request-{self._count}.json")
-        ans = os.path.join(self._files, f"answer-{self._count}.json")
-        with open(req, "w", encoding="utf-8") as fh:
-            fh.write(request)
+        msg = self.kc.session.msg("comm_msg", content={"comm_id": self._comm_id, "data": {"request": request}})
+        self.kc.shell_channel.send(msg)
         left = self.timeout if self.deadline is None else max(self.deadline - time.monotonic(), 0.5)
-        outcome = self.run_cell(_AGENT_CALL.format(request=req, answer=ans), silent=True, timeout=left)
-        try:
-            if outcome.status == TIMED_OUT:
-                why = f"your function ran longer than the {self.timeout:g} s a check may take"
-                return encode({"raised": Raised("TimeoutError", why)}, towards_kernel=False)
-            if not os.path.exists(ans):
-                why = f"the notebook did not answer the grader ({outcome.error or 'no answer'})"
-                return encode({"raised": Raised("RuntimeError", why)}, towards_kernel=False)
-            if os.path.getsize(ans) > self.MAX_ANSWER:
-                too_big = Opaque(f"answer of {os.path.getsize(ans)} bytes")
-                return encode({"result": too_big}, towards_kernel=False)
-            with open(ans, encoding="utf-8") as fh:
-                return fh.read()
-        finally:
-            for path in (req, ans):
-                if os.path.exists(path):
-                    os.remove(path)
+        reply = self._comm_reply(msg["header"]["msg_id"], left)
+        if reply is None:
+            why = f"your function ran longer than the {self.timeout:g} s a check may take"
+            return encode({"raised": Raised("TimeoutError", why)}, towards_kernel=False)
+        answer = reply.get("answer") if isinstance(reply, dict) else None
+        if not isinstance(answer, str):
+            why = "the notebook did not answer the grader (its kernel's comms were changed?)"
+            return encode({"raised": Raised("RuntimeError", why)}, towards_kernel=False)
+        if len(answer) > self.MAX_ANSWER:
+            return encode({"result": Opaque(f"answer of {len(answer)} characters")}, towards_kernel=False)
+        return answer
+
+    def _comm_reply(self, msg_id: str, timeout: float):
+        """The data of the agent's reply to ``msg_id``; {} if the kernel went idle without one;
+        None after interrupting a call that ran out of time."""
+        end = time.monotonic() + timeout
+        interrupted = False
+        while True:
+            try:
+                msg = self.kc.get_iopub_msg(timeout=POLL)
+            except queue.Empty:
+                if not self.km.is_alive():
+                    raise KernelLost(KERNEL_DIED, "the kernel died (os._exit, a crash, or out of memory)")
+                if time.monotonic() > end:
+                    if interrupted:
+                        raise KernelLost(TIMED_OUT, f"a learner function ran longer than {timeout:g} s "
+                                                    "and did not stop")
+                    self.km.interrupt_kernel()
+                    self.timed_out = interrupted = True
+                    end = time.monotonic() + INTERRUPT_GRACE
+                continue
+            if msg["parent_header"].get("msg_id") != msg_id:
+                continue
+            if msg["msg_type"] == "comm_msg" and not interrupted:
+                return msg["content"].get("data", {})
+            if msg["msg_type"] == "status" and msg["content"].get("execution_state") == "idle":
+                return None if interrupted else {}
