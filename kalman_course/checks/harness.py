@@ -11,17 +11,13 @@ message says what is wrong and, where the mistake is a known one, why.
 
 from __future__ import annotations
 
-import contextlib
-import copy
 import functools
-import io
 import types
-import warnings
 from typing import Callable, Iterable
 
 import numpy as np
 
-from kalman_course.checks.kernel_agent import global_names
+from kalman_course.checks.kernel_agent import call_quietly, global_names
 from kalman_course.checks.plain_data import Opaque
 from kalman_course.checks.remote import LearnerFunction, LearnerNamespace, session_of
 
@@ -198,12 +194,8 @@ def call(fn: Callable, *args, label: str | None = None):
         return answer["result"]
     if not callable(fn):
         raise CheckFailed(f"expected a function, got {type(fn).__name__}")
-    sink = io.StringIO()
     try:
-        with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink), \
-                warnings.catch_warnings(), np.errstate(all="ignore"):
-            warnings.simplefilter("ignore")
-            return fn(*copy.deepcopy(args))
+        return call_quietly(fn, args)
     except CheckFailed:
         raise
     except Exception as exc:  # the learner's code may raise anything

@@ -81,16 +81,23 @@ def _describe(namespace: dict, name: str) -> dict:
             "globals": sorted(global_names(code)) if isinstance(code, types.CodeType) else None}
 
 
+def call_quietly(fn, args: tuple):
+    """``fn(*args)`` as the checks call learner code: on fresh copies of the arguments, its
+    prints and warnings silenced, floating-point warnings off (a grader cell and this agent
+    both call learner functions this way)."""
+    sink = io.StringIO()
+    with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink), \
+            warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        return fn(*copy.deepcopy(args))
+
+
 def _call(namespace: dict, request: dict):
     fn = request["callee"]
     if not callable(fn):
         return {"not_callable": type(fn).__name__}
-    sink = io.StringIO()
     try:
-        with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink), \
-                warnings.catch_warnings(), np.errstate(all="ignore"):
-            warnings.simplefilter("ignore")
-            result = fn(*copy.deepcopy(request["args"]))
+        result = call_quietly(fn, request["args"])
     except (Exception, SystemExit) as exc:  # the learner's code may raise anything
         return {"raised": plain_data.Raised(type(exc).__name__, str(exc))}
     return {"result": result}

@@ -19,7 +19,6 @@ import csv
 import io
 import json
 import re
-import tempfile
 import threading
 import time
 import warnings
