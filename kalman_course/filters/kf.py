@@ -19,7 +19,21 @@ The public functions validate their inputs (a ``ValueError`` names the argument 
 was expected; a covariance must be symmetric positive semi-definite, R and S positive
 definite). :func:`run_kf` validates once and then runs the same equations through
 private, unvalidated kernels (built on :mod:`kalman_course.core.linalg`, where each
-formula is written once), so a long run costs no more per step than the maths.
+formula is written once), so a long run costs no more per step than the maths. The
+single steps :func:`kf_predict` and :func:`kf_update` validate once too: a model matrix
+already validated, or a mean or covariance that a step returned, is recognised by its
+bytes and not checked again (anything changed in place is checked again).
+
+Numerics. The gain is solved with the Cholesky factor of S (S = L Lᵀ), never through an
+explicit S⁻¹, whose gain is not backward stable and turns an ill-conditioned S into an
+indefinite P̂ (see :func:`kalman_course.core.linalg.whitened_gain`). The standard form
+:math:`\\hat P = (I - K G) \\check P` is computed as :math:`\\check P - Z^T Z` with
+:math:`Z = L^{-1} G \\check P`, whose round-off is of order ε‖P̌‖ whatever cond(S) is.
+The Joseph form (``joseph=True``) stays accurate further: where one update shrinks a
+variance by more than about 1e12 (a vague prior meeting a very precise sensor), ε‖P̌‖ is
+no longer small against P̂'s smallest eigenvalues. ``tests/test_kf.py`` checks both
+forms against 50-digit arithmetic on models with cond(S) and cond(P̌) up to 3e12, and
+the Joseph form also at cond(P̌) 1e16.
 """
 
 from __future__ import annotations
@@ -28,7 +42,6 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from numpy import dot
 
 from kalman_course.core import linalg
 from kalman_course.core.validation import (as_covariance, as_flag, as_matrix, as_observation_noise,
@@ -107,7 +120,7 @@ class KFHistory:
 
 def _predict(x_hat, P_hat, F, BQBt, v, P_out=None):
     """The prediction equations; returns (x̌, P̌), P̌ written into ``P_out`` if given."""
-    x_check = dot(F, x_hat)                                        # x̌ = F x̂
+    x_check = F.dot(x_hat)                                         # x̌ = F x̂
     if v is not None:
         x_check += v                                               #      + v
     P_check = linalg.predict_covariance(P_hat, F, BQBt, P_out)     # P̌ = F P̂ Fᵀ + B Q Bᵀ
@@ -118,11 +131,11 @@ def _update(x_check, P_check, y, G, CRCt, joseph, I, P_out=None):
     """The update equations; returns (x̂, P̂, innovation, S, K), P̂ written into ``P_out`` if
     given. ``I`` is the (n, n) identity, made once by the caller (``np.eye`` costs as much
     as a matrix product here)."""
-    innovation = y - dot(G, x_check)                               # e = y − G x̌
-    GP = dot(G, P_check)                                           # G P̌, (m, n)
+    innovation = y - G.dot(x_check)                                # e = y − G x̌
+    GP = G.dot(P_check)                                            # G P̌, (m, n)
     S = linalg.innovation_covariance(GP, G, CRCt)                  # S = G P̌ Gᵀ + C R Cᵀ
     K, Z = linalg.whitened_gain(GP, S)                             # K = P̌ Gᵀ S⁻¹, Z = L⁻¹ G P̌
-    x_hat = x_check + dot(K, innovation)                           # x̂ = x̌ + K e
+    x_hat = x_check + K.dot(innovation)                            # x̂ = x̌ + K e
     if joseph or Z is None:                      # P̂ = (I − K G) P̌ (I − K G)ᵀ + K C R Cᵀ Kᵀ
         # (also when S has no Cholesky factor in float64: K then is an LU solve's, and the
         # Joseph form is right for any gain)
@@ -133,17 +146,26 @@ def _update(x_check, P_check, y, G, CRCt, joseph, I, P_out=None):
 
 
 # ---------------------------------------------------------------------------------------
-# validate once: the model's matrices, remembered by content
+# validate once: the model's matrices and the steps' own results, known by content
 # ---------------------------------------------------------------------------------------
 
-# A learner's loop calls kf_predict and kf_update with the same F, Q, G, R at every step;
-# validating them again costs more than the step's arithmetic (Q of the CV model is
-# singular, so its check takes eigenvalues). Validation is a function of an argument's
-# dtype, shape and values only, so a float64 array whose bytes equal those of one that
-# passed needs no second check. The remembered result is a private, read-only copy: a
-# caller who writes into an argument later changes its bytes, so it is validated again.
+# A learner's loop calls kf_predict and kf_update with the same F, Q, G, R at every step,
+# and hands each step the covariance the other one returned. Checking those again costs
+# more than the step's arithmetic (Q of the CV model is singular, so its check takes
+# eigenvalues; every covariance costs a Cholesky factorisation). Validation depends on an
+# argument's dtype, shape and values only, so a float64 array is recognised by its bytes:
+#
+# - a model matrix whose bytes equal those of one that passed is not checked again; the
+#   memo keeps a private, read-only copy of the validated result;
+# - a mean or covariance whose bytes equal those of one that a step returned is not
+#   checked either: like run_kf, which validates x0 and P0 and then trusts what it
+#   computes from validated inputs, the steps trust what they returned.
+#
+# A caller who writes into an array changes its bytes, so it is validated again.
 _MODEL_MEMO: dict[tuple, np.ndarray] = {}
 _MODEL_MEMO_SIZE = 64
+_RETURNED: dict[tuple, None] = {}                  # keys only, oldest first
+_RETURNED_SIZE = 32
 _IDENTITY: dict[int, np.ndarray] = {}
 
 
@@ -178,9 +200,10 @@ def _validated_model(kind, value, jacobian, dim, validate):
         The validated (and, for Q with B or R with C, mapped) matrix; read-only when it
         comes from the memo.
     """
-    key = (kind, dim, _content(value), _content(jacobian))
-    if False in key:                            # lists, other dtypes: validated every time
+    content, jacobian_content = _content(value), _content(jacobian)
+    if content is False or jacobian_content is False:    # lists, other dtypes: every time
         return validate(value, jacobian, dim)
+    key = (kind, dim, content, jacobian_content)
     result = _MODEL_MEMO.get(key)
     if result is None:
         result = np.array(validate(value, jacobian, dim))    # a copy the caller cannot touch
@@ -192,11 +215,29 @@ def _validated_model(kind, value, jacobian, dim, validate):
 
 
 def _transition(F, _, n):
+    """F validated as the (n, n) motion Jacobian (the signature :func:`_validated_model` calls)."""
     return as_matrix(F, "F", (n, n))
 
 
 def _observation_jacobian(G, _, shape):
+    """G validated as the (m, n) observation Jacobian (the signature :func:`_validated_model` calls)."""
     return as_matrix(G, "G", shape)
+
+
+def _recognised(value, ndim, shape=None):
+    """True if ``value`` is a float64 array with ``ndim`` axes (and ``shape``, if given)
+    whose shape and bytes are those of a mean or covariance that a step returned."""
+    return (type(value) is np.ndarray and value.dtype == np.float64 and value.ndim == ndim
+            and (shape is None or value.shape == shape)
+            and (value.shape, value.tobytes()) in _RETURNED)
+
+
+def _returned(value):
+    """Remember a mean or covariance that a step returns, by shape and bytes; returns it."""
+    _RETURNED[(value.shape, value.tobytes())] = None
+    if len(_RETURNED) > _RETURNED_SIZE:
+        del _RETURNED[next(iter(_RETURNED))]
+    return value
 
 
 def _identity(n):
@@ -248,14 +289,17 @@ def kf_predict(x_hat, P_hat, F, Q, B=None, v=None):
         If an argument is not finite or a shape does not match, or ``P_hat`` or ``Q`` is
         not a symmetric positive semi-definite covariance.
     """
-    x_hat = as_vector(x_hat, "x_hat")
+    if not _recognised(x_hat, 1):
+        x_hat = as_vector(x_hat, "x_hat")
     n = x_hat.shape[0]
-    P_hat = as_covariance(P_hat, "P_hat", n, psd=True)
+    if not _recognised(P_hat, 2, (n, n)):
+        P_hat = as_covariance(P_hat, "P_hat", n, psd=True)
     F = _validated_model("F", F, None, n, _transition)
     BQBt = _validated_model("Q", Q, B, n, as_process_noise)
     if v is not None:
         v = as_vector(v, "v", n)
-    return _predict(x_hat, P_hat, F, BQBt, v)
+    x_check, P_check = _predict(x_hat, P_hat, F, BQBt, v)
+    return _returned(x_check), _returned(P_check)
 
 
 def innovation_covariance(P_check, G, R, C=None):
@@ -288,16 +332,17 @@ def innovation_covariance(P_check, G, R, C=None):
     P_check = as_covariance(P_check, "P_check", psd=True)
     G = as_matrix(G, "G", (None, P_check.shape[0]))
     CRCt = as_observation_noise(R, C, G.shape[0])
-    return linalg.symmetrise(linalg.innovation_covariance(dot(G, P_check), G, CRCt))
+    return linalg.symmetrise(linalg.innovation_covariance(G.dot(P_check), G, CRCt))
 
 
 def kf_gain(P_check, G, S):
     """Kalman gain :math:`K = \\check P G^T S^{-1}`.
 
-    Since :math:`\\check P` and S are symmetric, :math:`K^T = S^{-1} G \\check P`: one call
-    to ``np.linalg.solve``, no inverse formed, except for one or two measured components,
-    where the closed-form :math:`S^{-1}` (a division, or adj(S)/det(S)) is exact to
-    round-off and far cheaper than the call.
+    Since :math:`\\check P` and S are symmetric, :math:`K^T = S^{-1} G \\check P` is
+    solved, never multiplied by an inverse: one measured component is a division, two or
+    three a Cholesky factor of S written out (cheaper than a LAPACK call), more an LU solve
+    (:func:`kalman_course.core.linalg.gain`). K is the exact gain of an S and a
+    :math:`\\check P G^T` perturbed by a few ε entry by entry, however ill-conditioned S is.
 
     Parameters
     ----------
@@ -323,7 +368,7 @@ def kf_gain(P_check, G, S):
     P_check = as_covariance(P_check, "P_check", psd=True)
     G = as_matrix(G, "G", (None, P_check.shape[0]))
     S = as_covariance(S, "S", G.shape[0], positive_definite=True)
-    return linalg.gain(dot(G, P_check), S)
+    return linalg.gain(G.dot(P_check), S)
 
 
 def kf_update(x_check, P_check, y, G, R, C=None, joseph=False):
@@ -337,6 +382,14 @@ def kf_update(x_check, P_check, y, G, R, C=None, joseph=False):
     and either the standard form :math:`\\hat P = (I - K G) \\check P` or the Joseph form
     :math:`\\hat P = (I - K G) \\check P (I - K G)^T + K C R C^T K^T`, which stays
     symmetric positive semi-definite even for a sub-optimal K. Both are symmetrised.
+
+    K is solved with the Cholesky factor L of S (S = L Lᵀ), and the standard form is
+    computed as :math:`\\check P - Z^T Z` with :math:`Z = L^{-1} G \\check P` (equal to
+    :math:`K G \\check P`): its round-off is of order ε‖P̌‖ however ill-conditioned S is.
+    Prefer ``joseph=True`` when one update shrinks a variance by more than about 1e12;
+    there ε‖P̌‖ is a sizeable part of P̂'s smallest eigenvalues, while the Joseph form's
+    round-off scales with P̂. (If S has no Cholesky factor in float64, K comes from an LU
+    solve and P̂ from the Joseph form.)
 
     Parameters
     ----------
@@ -354,7 +407,7 @@ def kf_update(x_check, P_check, y, G, R, C=None, joseph=False):
     C : array_like, shape (m, r), optional
         Observation-noise Jacobian; None means the identity.
     joseph : bool, default False
-        Use the Joseph form for the posterior covariance.
+        Use the Joseph form for the posterior covariance (see above for when it matters).
 
     Returns
     -------
@@ -369,15 +422,18 @@ def kf_update(x_check, P_check, y, G, R, C=None, joseph=False):
         ``P_check`` is not a symmetric positive semi-definite covariance, ``R`` is not
         symmetric positive definite, or ``joseph`` is not a bool.
     """
-    x_check = as_vector(x_check, "x_check")
+    if not _recognised(x_check, 1):
+        x_check = as_vector(x_check, "x_check")
     n = x_check.shape[0]
-    P_check = as_covariance(P_check, "P_check", n, psd=True)
+    if not _recognised(P_check, 2, (n, n)):
+        P_check = as_covariance(P_check, "P_check", n, psd=True)
     y = as_vector(y, "y")
     m = y.shape[0]
     G = _validated_model("G", G, None, (m, n), _observation_jacobian)
     CRCt = _validated_model("R", R, C, m, as_observation_noise)
     joseph = as_flag(joseph, "joseph")
-    return KFUpdate(*_update(x_check, P_check, y, G, CRCt, joseph, _identity(n)))
+    x_hat, P_hat, innovation, S, K = _update(x_check, P_check, y, G, CRCt, joseph, _identity(n))
+    return KFUpdate(_returned(x_hat), _returned(P_hat), innovation, S, K)
 
 
 # ---------------------------------------------------------------------------------------
@@ -418,7 +474,8 @@ def run_kf(x0, P0, F, Q, G, R, ys, *, B=None, vs=None, joseph=False):
         Known inputs in state space: ``vs[k]`` is added in the prediction of step k.
         ``vs[0]`` is not used (there is no prediction at step 0).
     joseph : bool, default False
-        Use the Joseph form of the covariance update.
+        Use the Joseph form of the covariance update; the standard form is computed as in
+        :func:`kf_update`, which says when the Joseph form is the accurate choice.
 
     Returns
     -------
