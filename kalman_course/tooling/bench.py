@@ -45,6 +45,7 @@ ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_OUTPUT = ROOT / "benchmarks" / "RESULTS.md"
 EXCERPTS = ("cruise", "turns", "stop_go")
 KF_TARGET = 1.0          # ratio to FilterPy per step
+CALLS_TARGET = 1.5       # single validated calls / FilterPy's step (issue 18)
 ESKF_TARGET = 2.0        # s, whole sequence 00 (issue 7; the design's bar is 1.5 s)
 
 
@@ -401,19 +402,21 @@ def report(quick: bool = False, log=print) -> str:
     lines.append(f"| KF predict+update per step, `kf.run_kf` (Joseph) | {k['run_kf'] * 1e6:.1f} µs | "
                  f"ratio ≤ {KF_TARGET:.1f} | 2-D CV, 4 states, {k['n_steps']} steps, median of {k['repeats']} |")
     lines.append(f"| KF predict+update per step, `kf_predict` + `kf_update` calls | {k['calls'] * 1e6:.1f} µs | "
-                 f"– | validates its inputs on every call |")
+                 f"– | validates each input once (a model matrix, or a step's own result, by its bytes) |")
     if k["filterpy"] is None:
         lines.append("| FilterPy `KalmanFilter` predict+update per step | not installed | – | "
                      "`pip install -e .[dev]` |")
     else:
         lines.append(f"| FilterPy `KalmanFilter` predict+update per step | {k['filterpy'] * 1e6:.1f} µs | – | "
                      f"same problem |")
-        lines.append(f"| ratio `run_kf` / FilterPy (median of interleaved pairs) | {ratio:.2f} | ≤ {KF_TARGET:.1f} | "
-                     f"{'met' if ratio <= KF_TARGET else 'NOT met'}; single calls / FilterPy "
-                     f"{k['calls'] / k['filterpy']:.2f} |")
-        lines.append(f"| ratio `run_kf` / FilterPy, 3-D CV (6 states, 3 measured) | {k3['ratio']:.2f} | – | "
-                     f"gain by `np.linalg.solve` (2-D: closed-form S⁻¹); {k3['run_kf'] * 1e6:.1f} vs "
-                     f"{k3['filterpy'] * 1e6:.1f} µs |")
+        lines.append(f"| ratio `run_kf` / FilterPy (median of interleaved rounds) | {ratio:.2f} | ≤ {KF_TARGET:.1f} | "
+                     f"{'met' if ratio <= KF_TARGET else 'NOT met'} |")
+        lines.append(f"| ratio single `kf_predict` + `kf_update` calls / FilterPy | {k['calls_ratio']:.2f} | "
+                     f"≤ {CALLS_TARGET:.1f} | {'met' if k['calls_ratio'] <= CALLS_TARGET else 'NOT met'}; "
+                     f"inputs validated once |")
+        lines.append(f"| ratio `run_kf` / FilterPy, 3-D CV (6 states, 3 measured) | {k3['ratio']:.2f} | "
+                     f"≤ {KF_TARGET:.1f} | {'met' if k3['ratio'] <= KF_TARGET else 'NOT met'}; gain through the "
+                     f"Cholesky factor of S; {k3['run_kf'] * 1e6:.1f} vs {k3['filterpy'] * 1e6:.1f} µs |")
     lines.append(f"| EKF update (radar, 5-state CTRV, validated `ekf.ekf_update`) | {ekf_t * 1e6:.1f} µs | – | "
                  f"median of {1000 if quick else 3000} calls |")
     med = statistics.median(wall)
