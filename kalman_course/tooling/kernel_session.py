@@ -31,6 +31,8 @@ from kalman_course.checks.remote import KernelLost, Session
 POLL = 0.25
 #: Seconds an interrupted cell gets to stop before the kernel is given up.
 INTERRUPT_GRACE = 5.0
+#: What a channel reader's judge returns while the message it waits for has not come.
+_PENDING = object()
 #: Statuses a lost kernel reports (the same words as the gradebook's).
 TIMED_OUT, KERNEL_DIED = "timed out", "kernel died"
 
@@ -148,23 +150,36 @@ class KernelSession(Session):
 
     def _reply(self, msg_id: str, timeout: float):
         """The execute reply to ``msg_id``, or None after interrupting a cell that ran out of time."""
+        def judge(msg, interrupted):
+            if msg["parent_header"].get("msg_id") != msg_id:
+                return _PENDING
+            return None if interrupted else msg
+        return self._wait(self.kc.get_shell_msg, judge, timeout, "a cell")
+
+    def _wait(self, get_msg, judge, timeout: float, what: str):
+        """Read a channel until ``judge(msg, interrupted)`` gives something else than _PENDING.
+
+        A dead kernel is noticed within :data:`POLL` seconds; past ``timeout`` the kernel is
+        interrupted once, and given up :data:`INTERRUPT_GRACE` seconds later.
+        """
         end = time.monotonic() + timeout
         interrupted = False
         while True:
             try:
-                msg = self.kc.get_shell_msg(timeout=POLL)
+                msg = get_msg(timeout=POLL)
             except queue.Empty:
                 if not self.km.is_alive():
                     raise KernelLost(KERNEL_DIED, "the kernel died (os._exit, a crash, or out of memory)")
                 if time.monotonic() > end:
                     if interrupted:
-                        raise KernelLost(TIMED_OUT, f"a cell ran longer than {timeout:g} s and did not stop")
+                        raise KernelLost(TIMED_OUT, f"{what} ran longer than {timeout:g} s and did not stop")
                     self.km.interrupt_kernel()
                     self.timed_out = interrupted = True
                     end = time.monotonic() + INTERRUPT_GRACE
                 continue
-            if msg["parent_header"].get("msg_id") == msg_id:
-                return None if interrupted else msg
+            outcome = judge(msg, interrupted)
+            if outcome is not _PENDING:
+                return outcome
 
     def _stdout(self, msg_id: str) -> str:
         """Everything the cell ``msg_id`` printed to stdout (read until the kernel is idle)."""
@@ -212,25 +227,12 @@ class KernelSession(Session):
     def _comm_reply(self, msg_id: str, timeout: float):
         """The data of the agent's reply to ``msg_id``; {} if the kernel went idle without one;
         None after interrupting a call that ran out of time."""
-        end = time.monotonic() + timeout
-        interrupted = False
-        while True:
-            try:
-                msg = self.kc.get_iopub_msg(timeout=POLL)
-            except queue.Empty:
-                if not self.km.is_alive():
-                    raise KernelLost(KERNEL_DIED, "the kernel died (os._exit, a crash, or out of memory)")
-                if time.monotonic() > end:
-                    if interrupted:
-                        raise KernelLost(TIMED_OUT, f"a learner function ran longer than {timeout:g} s "
-                                                    "and did not stop")
-                    self.km.interrupt_kernel()
-                    self.timed_out = interrupted = True
-                    end = time.monotonic() + INTERRUPT_GRACE
-                continue
+        def judge(msg, interrupted):
             if msg["parent_header"].get("msg_id") != msg_id:
-                continue
+                return _PENDING
             if msg["msg_type"] == "comm_msg" and not interrupted:
                 return msg["content"].get("data", {})
             if msg["msg_type"] == "status" and msg["content"].get("execution_state") == "idle":
                 return None if interrupted else {}
+            return _PENDING
+        return self._wait(self.kc.get_iopub_msg, judge, timeout, "a learner function")
