@@ -146,7 +146,7 @@ def test_unreadable_files_are_reported_not_raised(tmp_path, content, name):
 
 def test_a_missing_file_is_named_as_missing(tmp_path):
     result = grading.grade_notebook(tmp_path / "07_gone.ipynb", {"07": _release()})
-    assert (result.status, result.detail) == (grading.NOT_A_NOTEBOOK, "no such file")
+    assert (result.status, result.detail) == (grading.NOT_A_NOTEBOOK, f"no such file: {tmp_path / '07_gone.ipynb'}")
 
 
 def test_table_and_gradebooks(tmp_path):

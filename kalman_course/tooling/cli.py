@@ -100,6 +100,8 @@ def _cmd_grade(args: argparse.Namespace) -> int:
         submissions = [submissions[i] for i in positions]
         print(f"shard {args.shard[0]}/{args.shard[1]}: {len(submissions)} of {class_size} notebooks", flush=True)
     jobs = args.jobs or os.cpu_count() or 1
+    print(f"grading {len(submissions)} notebook(s), {min(jobs, len(submissions))} at a time, "
+          "each in a kernel of its own ...", flush=True)
     results = grading.grade_many(submissions, release, timeout=args.timeout, jobs=jobs, progress=progress,
                                  order=positions, class_size=class_size)
     return _report(results, args)
@@ -110,7 +112,7 @@ def _report(results, args) -> int:
     from kalman_course.tooling import grading
 
     print()
-    print(grading.format_table(results))
+    print(grading.format_table(results, every_hint=args.all_hints))
     print(grading.format_summary(results))
     if args.csv:
         grading.write_csv(results, args.csv)
@@ -162,6 +164,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
         if args.to not in ("tex", "md"):
             print("error: derivations export --to tex or --to md", file=sys.stderr)
             return 2
+        print("building and proving every derivation with SymPy (about ten seconds) ...", flush=True)
         paths = [export.export_derivations(args.to, args.output)]
     else:
         if args.to != "html":
@@ -171,6 +174,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
         if not notebooks:
             print("error: no notebooks to export", file=sys.stderr)
             return 2
+        print(f"exporting {len(notebooks)} notebook(s) to HTML ...", flush=True)
         try:
             paths = export.export_notebooks_html(
                 notebooks, args.output, progress=lambda i, n, p: print(f"[{i}/{n}] wrote {p}", flush=True))
@@ -206,13 +210,27 @@ def _expand_notebooks(items: list[str], recursive: bool = False) -> list[Path]:
     return found
 
 
+def _positive(kind):
+    """An argparse type: a number of ``kind`` greater than zero, or a clear message."""
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number greater than 0, got {text!r}") from None
+        if not value > 0:
+            raise argparse.ArgumentTypeError(f"expected a number greater than 0, got {text!r}")
+        return value
+    return parse
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="kalman-course", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(prog="kalman-course",
+                                     description="The kalman-course command line: run, build, grade and export the course.")
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("execute", help="run notebooks in place and store their outputs")
     p.add_argument("paths", nargs="+", help="notebooks or folders of notebooks")
-    p.add_argument("--timeout", type=int, default=600, help="per-cell timeout in seconds (default 600)")
+    p.add_argument("--timeout", type=_positive(int), default=600, help="per-cell timeout in seconds (default 600)")
     p.set_defaults(func=_cmd_execute)
 
     p = sub.add_parser("build", help="write exercises/ from solutions/")
@@ -226,17 +244,20 @@ def build_parser() -> argparse.ArgumentParser:
                    help="notebooks or folders of notebooks (default: exercises)")
     p.add_argument("--release", default="exercises",
                    help="folder of the released exercises whose grader cells are trusted (default exercises)")
-    p.add_argument("--timeout", type=float, default=120.0, help="per-cell timeout in seconds (default 120)")
+    p.add_argument("--timeout", type=_positive(float), default=120.0, help="per-cell timeout in seconds (default 120)")
     _add_gradebook_options(p)
-    p.add_argument("--jobs", type=int, default=0,
+    p.add_argument("--jobs", type=_positive(int), default=None,
                    help="submissions graded in parallel, each in its own kernel (default: number of cores)")
+    p.add_argument("--all-hints", action="store_true",
+                   help="list every failed check with its hint under the table (default: the first per notebook)")
     p.add_argument("--shard", type=_shard, metavar="K/N",
-                   help="grade only shard K of N (learners dealt round-robin); combine with `merge`")
+                   help="grade only shard K of N (learners dealt round-robin); combine them with merge")
     p.set_defaults(func=_cmd_grade)
 
     p = sub.add_parser("merge", help="combine the JSON gradebooks of a class's shards into one")
     p.add_argument("gradebooks", nargs="+", help="the shards' --json files")
     _add_gradebook_options(p)
+    p.add_argument("--all-hints", action="store_true", help="list every failed check with its hint")
     p.set_defaults(func=_cmd_merge)
 
     p = sub.add_parser("export", help="export derivations (LaTeX/Markdown) or lectures (HTML)")
@@ -267,7 +288,13 @@ def main(argv: list[str] | None = None) -> int:
         args.paths = [*args.paths, *extra]  # notebooks may follow the options
     elif extra:
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
-    return args.func(args)
+    try:
+        return args.func(args)
+    except (FileNotFoundError, NotADirectoryError, PermissionError) as exc:
+        # a path the user gave (or the repository's folders, run from elsewhere): one line, no traceback
+        where = f": {exc.filename}" if getattr(exc, "filename", None) else ""
+        print(f"error: {exc.strerror or exc}{where}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":  # pragma: no cover

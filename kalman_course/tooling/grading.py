@@ -385,7 +385,7 @@ def grade_notebook(path: str | Path, release: dict, *, timeout: float = 120.0,
     try:
         submission = read_notebook(path)
     except FileNotFoundError:
-        result.status, result.detail = NOT_A_NOTEBOOK, "no such file"
+        result.status, result.detail = NOT_A_NOTEBOOK, f"no such file: {path}"
         return result
     except (NotebookError, OSError) as exc:  # corrupt JSON, empty file, not a notebook at all
         result.status, result.detail = NOT_A_NOTEBOOK, f"cannot read it as a notebook: {exc}"
@@ -531,15 +531,17 @@ def write_feedback(results: list[NotebookResult], folder: str | Path) -> list[Pa
                 mark = "passed" if c.points == c.possible else "failed"
                 lines.append(f"- **{c.check}** ({c.points}/{c.possible}): {mark}" + (f" — {c.message}" if c.message else ""))
             lines.append("")
-        safe = re.sub(r"[^\w.-]", "_", learner) or "_"
+        # grading yourself ("-"): feedback.md, not "-.md"
+        safe = "feedback" if learner == "-" else (re.sub(r"[^\w.-]", "_", learner) or "_")
         path = folder / f"{safe}.md"
         path.write_text("\n".join(lines), encoding="utf-8")
         written.append(path)
     return written
 
 
-def format_table(results: list[NotebookResult]) -> str:
-    """Return the points table printed by ``kalman-course grade``."""
+def format_table(results: list[NotebookResult], every_hint: bool = False) -> str:
+    """Return the points table printed by ``kalman-course grade`` (``every_hint``: also every
+    failed check with the first line of its message, notebook by notebook)."""
     rows = [("learner", "chapter", "notebook", "points", "status", "first hint")]
     for r in results:
         hint = r.hint.splitlines()[0] if r.hint else ""
@@ -560,6 +562,14 @@ def format_table(results: list[NotebookResult]) -> str:
                          f"(edited: {', '.join(r.tampered) or 'none'}; re-added: {', '.join(r.readded) or 'none'})")
         for flag in r.flags:
             lines.append(f"review: {Path(r.path).name}: {flag}")
+    if every_hint:
+        for r in results:
+            failed = [c for c in r.checks if c.points < c.possible]
+            if failed:
+                lines.append(f"{Path(r.path).name}{f' ({r.learner})' if r.learner != '-' else ''}:")
+                for c in failed:
+                    text = (c.message.splitlines() or [""])[0].removeprefix("CheckFailed: ")
+                    lines.append(f"  {text}" if text.startswith(f"{c.check}:") else f"  {c.check}: {text}")
     return "\n".join(lines)
 
 

@@ -1,0 +1,60 @@
+"""The command line as a user meets it: plain help, checked options, one-line errors."""
+
+import subprocess
+import sys
+
+import pytest
+
+from kalman_course.tooling import cli, grading
+
+SUBCOMMANDS = [[], ["execute"], ["build"], ["grade"], ["merge"], ["export"], ["bench"], ["data"], ["data", "build"]]
+
+
+@pytest.mark.parametrize("words", SUBCOMMANDS, ids=lambda w: " ".join(w) or "top")
+def test_help_texts_have_no_markup(words, capsys):
+    with pytest.raises(SystemExit) as done:
+        cli.main([*words, "--help"])
+    assert done.value.code == 0
+    text = capsys.readouterr().out
+    assert "usage: kalman-course" in text and "`" not in text and "``" not in text
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["grade", "--jobs", "0"], "argument --jobs: expected a number greater than 0, got '0'"),
+    (["grade", "--timeout", "-1"], "argument --timeout: expected a number greater than 0, got '-1'"),
+    (["grade", "--timeout", "soon"], "argument --timeout: expected a number greater than 0, got 'soon'"),
+    (["grade", "--shard", "3/2"], "argument --shard: expected K/N with 1 <= K <= N, got '3/2'"),
+    (["grade", "--shard", "half"], "argument --shard: expected K/N (shard K of N), got 'half'"),
+    (["execute", "x.ipynb", "--timeout", "0"], "argument --timeout: expected a number greater than 0, got '0'"),
+])
+def test_option_values_are_checked_with_a_clear_message(argv, message, capsys):
+    with pytest.raises(SystemExit) as done:
+        cli.main(argv)
+    assert done.value.code == 2 and message in capsys.readouterr().err
+
+
+def test_outside_the_repository_errors_are_one_line_not_tracebacks(tmp_path):
+    out = subprocess.run([sys.executable, "-m", "kalman_course.tooling.cli", "build", "--check"],
+                         cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2 and "Traceback" not in out.stderr
+    assert out.stderr.startswith("error: ") and "solutions" in out.stderr
+
+
+def test_a_missing_file_is_named_and_grading_yourself_writes_feedback_md(tmp_path, capsys):
+    missing = tmp_path / "03_kalman_filter.ipynb"
+    code = cli.main(["grade", str(missing), "--feedback", str(tmp_path / "fb")])
+    out = capsys.readouterr().out
+    assert code == 1 and f"no such file: {missing}" in out
+    assert out.splitlines()[0].startswith("grading 1 notebook(s)")      # said before any work
+    assert [p.name for p in (tmp_path / "fb").iterdir()] == ["feedback.md"]
+
+
+def test_every_hint_can_be_listed_under_the_table():
+    checks = [grading.CheckResult("kf_predict", "g1", 0, 2, "CheckFailed: kf_predict: P is wrong. Hint: add Q\nmore"),
+              grading.CheckResult("kf_gain", "g2", 2, 2),
+              grading.CheckResult("kf_update", "g3", 0, 3, "CheckFailed: kf_update: x is wrong")]
+    result = grading.NotebookResult("a/03_kalman_filter.ipynb", "alice", "03", checks=checks)
+    short, full = grading.format_table([result]), grading.format_table([result], every_hint=True)
+    assert "kf_update: x is wrong" not in short
+    assert full.endswith("03_kalman_filter.ipynb (alice):\n  kf_predict: P is wrong. Hint: add Q\n"
+                         "  kf_update: x is wrong")
