@@ -1,9 +1,12 @@
 """Stored notebooks are canonical: what `kalman-course execute` removes and keeps."""
 
 import nbformat
+import pytest
 from nbformat.v4 import new_code_cell, new_markdown_cell, new_notebook, new_output
 
 from kalman_course.tooling.notebooks import normalise, notebook_text
+
+from conftest import ROOT
 
 
 def _executed():
@@ -35,3 +38,15 @@ def test_normalise_is_deterministic_and_idempotent():
     once = notebook_text(normalise(_executed()))
     assert once == notebook_text(normalise(_executed()))
     assert once == notebook_text(normalise(nbformat.reads(once, as_version=4)))
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "notebooks").glob("*.ipynb")) + sorted((ROOT / "solutions").glob("*.ipynb"))
+                         + sorted((ROOT / "exercises").glob("*.ipynb")), ids=lambda p: f"{p.parent.name}/{p.stem}")
+def test_saving_an_unchanged_notebook_changes_nothing(path):
+    """What JupyterLab does on save (the server's nbformat.write of what nbformat.read gave)
+    reproduces the stored file byte for byte, so an untouched notebook never shows a diff."""
+    import io
+
+    saved = io.StringIO()
+    nbformat.write(nbformat.read(path, as_version=4), saved)
+    assert saved.getvalue() == path.read_text(encoding="utf-8")

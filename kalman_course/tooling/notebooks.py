@@ -130,8 +130,13 @@ def _coalesce_streams(outputs: list) -> list:
 
 
 def notebook_text(nb) -> str:
-    """Return ``nb`` as JSON in the canonical layout (sorted keys, one-space indent, final newline)."""
-    return json.dumps(nb, indent=1, sort_keys=True, ensure_ascii=False) + "\n"
+    """Return ``nb`` exactly as JupyterLab saves it (nbformat's writer: sorted keys, one-space
+    indent, multi-line text as lists of lines, a final newline), so that opening and saving an
+    unchanged notebook changes nothing."""
+    import nbformat
+
+    text = nbformat.writes(nbformat.from_dict(nb), version=4)
+    return text if text.endswith("\n") else text + "\n"
 
 
 def write_notebook(nb, path: Path) -> None:
