@@ -62,6 +62,28 @@ def test_notebooks_export_to_offline_html(tmp_path):
     assert not re.search(r'(?:src|href)="https?://', page), "the page must not load anything remote"
     assert (out / "mathjax" / "MathJax.js").is_file()
     assert 'href="01_bayes_rule.html"' in (out / "index.html").read_text()
+    # MathJax is told to use the web font the local copy ships, which is there
+    assert export.MATHJAX_FONT_CONFIG in page and (out / "mathjax" / "fonts" / "HTML-CSS" / "STIX-Web").is_dir()
+
+
+def test_the_lectures_form_a_site_with_working_links(tmp_path):
+    out = tmp_path / "site"
+    lectures = [ROOT / "notebooks" / name for name in ("01_bayes_rule.ipynb", "02_gaussians.ipynb",
+                                                        "A1_notation_glossary.ipynb")]
+    assert cli.main(["export", "notebooks", "--to", "html", "-o", str(out), *map(str, lectures)]) == 0
+    index = (out / "index.html").read_text()
+    titles = re.findall(r'<li><a href="([^"]+)">([^<]+)</a><br><span class="kc-summary">([^<]+)</span>', index)
+    assert [t[0] for t in titles] == ["01_bayes_rule.html", "02_gaussians.html", "A1_notation_glossary.html"]
+    assert titles[0][1].startswith("01") and "Bayes" in titles[0][1] and all(len(t[2]) > 20 for t in titles)
+    assert "*" not in "".join(t[2] for t in titles)            # markdown emphasis stripped
+    for k, (name, _, _) in enumerate(titles):
+        page = (out / name).read_text()
+        navs = re.findall(r'<nav class="kc-nav kc-(top|bottom)">(.*?)</nav>', page)
+        assert [where for where, _ in navs] == ["top", "bottom"]
+        links = re.findall(r'href="([^"]+)"', navs[0][1])
+        expected = ([titles[k - 1][0]] if k else []) + ["index.html"] + \
+            ([titles[k + 1][0]] if k + 1 < len(titles) else [])
+        assert links == expected and all((out / link).is_file() for link in links)
 
 
 def test_bad_format_is_refused(tmp_path, capsys):

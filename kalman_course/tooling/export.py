@@ -119,8 +119,57 @@ def mathjax_dir() -> Path:
     return folder
 
 
+#: MathJax's own web font that the local copy ships (its default TeX fonts are not shipped, and
+#: without this the formulas fall back to system fonts: upright letters, misplaced accents).
+MATHJAX_FONT_CONFIG = ('"HTML-CSS": {availableFonts: [], preferredFont: null, webFont: "STIX-Web", '
+                       'imageFont: null},')
+
+#: The quiet style of the course site's navigation bars and index.
+SITE_STYLE = """<style>
+.kc-nav { font: 14px/1.5 system-ui, sans-serif; display: flex; justify-content: space-between;
+  gap: 1em; max-width: 1100px; margin: 0 auto; padding: 0.6em 1em; border-bottom: 1px solid #ddd; }
+.kc-nav a { color: #2a5d8f; text-decoration: none; } .kc-nav a:hover { text-decoration: underline; }
+.kc-nav.kc-bottom { border-top: 1px solid #ddd; border-bottom: none; }
+body.kc-index { font: 16px/1.6 system-ui, sans-serif; max-width: 760px; margin: 2em auto; padding: 0 1em;
+  color: #222; }
+body.kc-index li { margin: 0.5em 0; } body.kc-index .kc-summary { color: #555; }
+</style>"""
+
+
+def notebook_title_and_summary(nb) -> tuple[str, str]:
+    """The first ``# `` heading of a notebook and the first sentence of the prose under it."""
+    title, summary = "", ""
+    for cell in nb.cells:
+        if cell.cell_type != "markdown":
+            continue
+        for block in re.split(r"\n\s*\n", cell.source.strip()):
+            block = " ".join(block.split())
+            if not title and block.startswith("# "):
+                title = block[2:].strip()
+            elif title and block and not block.startswith(("#", "|", "$$", "<", "!")):
+                summary = re.split(r"(?<=[.!?])\s", block, maxsplit=1)[0]
+                return title, re.sub(r"\*+|`", "", summary)  # the index shows it as plain text
+    return title, summary
+
+
+def _nav(pages: list[tuple[Path, str]], i: int, where: str) -> str:
+    def link(j, arrow_before, arrow_after):
+        if not 0 <= j < len(pages):
+            return "<span></span>"
+        page, title = pages[j]
+        return f'<a href="{html.escape(page.name)}">{arrow_before}{html.escape(title)}{arrow_after}</a>'
+    return (f'<nav class="kc-nav kc-{where}">{link(i - 1, "← ", "")}'
+            f'<a href="index.html">course index</a>{link(i + 1, "", " →")}</nav>')
+
+
 def export_notebooks_html(notebooks: list[Path], out_dir: str | Path, progress=None) -> list[Path]:
-    """Write each notebook as an HTML page using a local MathJax, plus ``index.html``."""
+    """Write each notebook as an HTML page using a local MathJax, plus ``index.html``.
+
+    The pages form a small site in the order given: each has previous / index / next links
+    at its top and bottom, and the index lists every page's title with the first sentence
+    of its introduction.
+    """
+    import nbformat
     from nbconvert import HTMLExporter
 
     out_dir = Path(out_dir)
@@ -130,20 +179,36 @@ def export_notebooks_html(notebooks: list[Path], out_dir: str | Path, progress=N
         shutil.copytree(mathjax_dir(), target, dirs_exist_ok=True)
     exporter = HTMLExporter(template_name="lab")
     exporter.mathjax_url = "mathjax/MathJax.js?config=TeX-AMS-MML_HTMLorMML-full"
+    nbs = [nbformat.read(str(path), as_version=4) for path in notebooks]
+    pages = [(out_dir / f"{Path(path).stem}.html", notebook_title_and_summary(nb)[0] or Path(path).stem)
+             for path, nb in zip(notebooks, nbs)]
     written = []
-    for i, nb_path in enumerate(notebooks, 1):
-        body, _ = exporter.from_filename(str(nb_path))
+    for i, (nb_path, nb) in enumerate(zip(notebooks, nbs)):
+        body, _ = exporter.from_notebook_node(nb, resources={"metadata": {"path": str(Path(nb_path).parent)}})
         # The template loads require.js from a CDN for widgets, which the lectures do not use.
         body = REMOTE_SCRIPT_RE.sub("", body)
-        page = out_dir / f"{Path(nb_path).stem}.html"
+        body = body.replace("MathJax.Hub.Config({", "MathJax.Hub.Config({\n" + MATHJAX_FONT_CONFIG, 1)
+        body = body.replace("</head>", SITE_STYLE + "\n</head>", 1)
+        body = re.sub(r"(<body[^>]*>)", lambda m: m.group(1) + _nav(pages, i, "top"), body, count=1)
+        body = body.replace("</body>", _nav(pages, i, "bottom") + "\n</body>", 1)
+        page = pages[i][0]
         page.write_text(body, encoding="utf-8")
         written.append(page)
         if progress:
-            progress(i, len(notebooks), page)
-    items = "\n".join(f'<li><a href="{html.escape(p.name)}">{html.escape(p.stem.replace("_", " "))}</a></li>'
-                      for p in written)
+            progress(i + 1, len(notebooks), page)
+    items = "\n".join(f'<li><a href="{html.escape(page.name)}">{html.escape(title)}</a>'
+                      f'<br><span class="kc-summary">{html.escape(notebook_title_and_summary(nb)[1])}</span></li>'
+                      for (page, title), nb in zip(pages, nbs))
     index = out_dir / "index.html"
-    index.write_text("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>kalman-course</title></head>\n"
-                     f"<body><h1>kalman-course: lectures</h1>\n<ol>\n{items}\n</ol></body></html>\n",
-                     encoding="utf-8")
+    index.write_text("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\">"
+                     "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">"
+                     f"<title>kalman-course</title>\n{SITE_STYLE}\n"
+                     # the summaries' inline maths, typeset by the same local MathJax as the pages
+                     "<script type=\"text/x-mathjax-config\">MathJax.Hub.Config({"
+                     f"{MATHJAX_FONT_CONFIG} tex2jax: {{inlineMath: [['$', '$']]}}, messageStyle: 'none'}});</script>\n"
+                     f"<script src=\"{exporter.mathjax_url}\"></script>\n</head>\n"
+                     "<body class=\"kc-index\"><h1>kalman-course</h1>\n"
+                     "<p>A Kalman-filtering course: every derivation shown and checked by code, from Bayes' "
+                     "rule to an error-state filter on KITTI.</p>\n"
+                     f"<ol>\n{items}\n</ol></body></html>\n", encoding="utf-8")
     return [index, *written]
