@@ -161,8 +161,8 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
     start = time.perf_counter()
     if args.what == "derivations":
-        if args.to not in ("tex", "md"):
-            print("error: derivations export --to tex or --to md", file=sys.stderr)
+        if args.to not in ("tex", "beamer", "md"):
+            print("error: derivations export --to tex (handout), beamer (slides) or md", file=sys.stderr)
             return 2
         print("building and proving every derivation with SymPy (about ten seconds) ...", flush=True)
         paths = [export.export_derivations(args.to, args.output)]
@@ -263,7 +263,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("export", help="export derivations (LaTeX/Markdown) or lectures (HTML)")
     p.add_argument("what", choices=["derivations", "notebooks"])
     p.add_argument("paths", nargs="*", help="notebooks to export (default: notebooks/)")
-    p.add_argument("--to", required=True, help="tex or md for derivations; html for notebooks")
+    p.add_argument("--to", required=True, help="tex (handout), beamer (slides) or md for derivations; html for notebooks")
     p.add_argument("-o", "--output", required=True, help="folder to write to")
     p.set_defaults(func=_cmd_export)
 

@@ -53,55 +53,98 @@ def _latex_text(text: str) -> str:
     return "".join(out)
 
 
+#: An expanded identity (kind "check": explicit symbolic matrices) longer than this, in
+#: characters of LaTeX, is two and a half page widths and more: the handouts name it and
+#: say where SymPy checks it instead of printing it (the Markdown export keeps it whole).
+EXPANDED_MAX_CHARS = 1500
+
+
+def _numbered(derivations: dict):
+    """(k, name, derivation, [(j, equation, shown)]) in course order; ``shown`` is False for an
+    expanded identity too wide for a page."""
+    for k, (name, d) in enumerate(derivations.items(), 1):
+        yield k, name, d, [(j, eq, not (eq.kind == "check" and len(eq.latex()) > EXPANDED_MAX_CHARS))
+                           for j, eq in enumerate(d.equations, 1)]
+
+
+def _left_out(name: str) -> str:
+    return ("Expanded with explicit symbolic matrices, this equation is several page widths wide; "
+            "it is left out here (the Markdown export prints it) and checked by SymPy in\\par"
+            f"\\texttt{{kalman\\_course.symbolic.derivation(\"{_latex_text(name)}\").verify()}}")
+
+
+def _fitted(latex: str) -> str:
+    """A display scaled down to the text width when wider (adjustbox), never up."""
+    return rf"\adjustbox{{max width=\linewidth}}{{$\displaystyle {latex}$}}"
+
+
+_PREAMBLE = [r"\usepackage{amsmath,amssymb}", r"\usepackage{adjustbox}", r"\setcounter{MaxMatrixCols}{20}"]
+_INTRO = ("Every equation below is generated from \\texttt{kalman\\_course.symbolic}; identities and "
+          "checks are proved there by SymPy.")
+
+
 def derivations_latex(derivations: dict) -> str:
-    """One standalone LaTeX document with every derivation, each equation labelled."""
-    lines = [r"\documentclass[a4paper,10pt]{article}",
-             r"\usepackage[margin=2cm]{geometry}",
-             r"\usepackage{amsmath,amssymb}",
-             r"\allowdisplaybreaks",
-             r"\setcounter{MaxMatrixCols}{20}",
-             r"\title{kalman-course: derivations}",
-             r"\date{}",
-             r"\begin{document}",
-             r"\maketitle",
-             "Every equation below is generated from \\texttt{kalman\\_course.symbolic}; identities and "
-             "checks are proved there by SymPy.",
-             ""]
-    for name, d in derivations.items():
-        lines += [rf"\section{{{_latex_text(d.title)}}}\label{{sec:{name}}}",
-                  _latex_text(d.model), ""]
-        for eq in d.equations:
+    """One standalone LaTeX handout with every derivation; equations numbered k.j (derivation
+    k, equation j), each fitted to the text width, expanded identities named not printed."""
+    lines = [r"\documentclass[a4paper,10pt]{article}", r"\usepackage[margin=2cm]{geometry}", *_PREAMBLE,
+             r"\allowdisplaybreaks", r"\emergencystretch=3em",  # long inline maths in the prose
+             r"\title{kalman-course: derivations}", r"\date{}",
+             r"\begin{document}", r"\maketitle", _INTRO, ""]
+    for k, name, d, equations in _numbered(derivations):
+        lines += [rf"\section{{{_latex_text(d.title)}}}\label{{sec:{name}}}", _latex_text(d.model), ""]
+        for j, eq, shown in equations:
             note = _latex_text(eq.description) if eq.description else ""
-            lines += [rf"\paragraph{{{_latex_text(eq.label)}}} ({KIND_NOTE[eq.kind]}) {note}",
-                      r"\begin{equation}", rf"\label{{{equation_label(name, eq.label)}}}",
-                      eq.latex(), r"\end{equation}", ""]
+            lines.append(rf"\paragraph{{({k}.{j}) {_latex_text(eq.label)}}} ({KIND_NOTE[eq.kind]}) {note}")
+            if shown:
+                lines += [r"\begin{equation}", rf"\label{{{equation_label(name, eq.label)}}}", rf"\tag{{{k}.{j}}}",
+                          _fitted(eq.latex()), r"\end{equation}", ""]
+            else:
+                lines += [rf"\label{{{equation_label(name, eq.label)}}}", _left_out(name), ""]
+    lines += [r"\end{document}", ""]
+    return "\n".join(lines)
+
+
+def derivations_beamer(derivations: dict) -> str:
+    """The same derivations as slides for instructors: one derivation per frame (continued on
+    more frames when long), equations fitted to the slide, numbered as in the handout."""
+    lines = [r"\documentclass[aspectratio=169,10pt]{beamer}", *_PREAMBLE, r"\setbeamertemplate{navigation symbols}{}",
+             r"\title{kalman-course: derivations}", r"\date{}", r"\begin{document}",
+             r"\begin{frame}\titlepage\end{frame}", ""]
+    for k, name, d, equations in _numbered(derivations):
+        lines += [rf"\begin{{frame}}[allowframebreaks]{{{k}. {_latex_text(d.title)}}}",
+                  rf"\small {_latex_text(d.model)}", ""]
+        for j, eq, shown in equations:
+            lines.append(rf"\par\medskip\textbf{{({k}.{j}) {_latex_text(eq.label)}}} \emph{{{KIND_NOTE[eq.kind]}}}")
+            lines += [r"\[", _fitted(eq.latex()), r"\]"] if shown else [_left_out(name)]
+        lines += [r"\end{frame}", ""]
     lines += [r"\end{document}", ""]
     return "\n".join(lines)
 
 
 def derivations_markdown(derivations: dict) -> str:
-    """Every derivation as Markdown with ``$...$`` / ``$$...$$`` maths and labelled equations."""
+    """Every derivation as Markdown with ``$...$`` / ``$$...$$`` maths, each equation numbered
+    k.j as in the handout, with an anchor ``eq:<derivation>:<label>``."""
     lines = ["# kalman-course: derivations", "",
              "Generated from `kalman_course.symbolic`; identities and checks are proved there by SymPy.", ""]
-    for name, d in derivations.items():
-        lines += [f"## {d.title}", "", f"<a id=\"{name}\"></a>", "", d.model, ""]
-        for eq in d.equations:
+    for k, name, d, equations in _numbered(derivations):
+        lines += [f"## {k}. {d.title}", "", f"<a id=\"{name}\"></a>", "", d.model, ""]
+        for j, eq, _ in equations:
             anchor = equation_label(name, eq.label)
             note = f" {eq.description}" if eq.description else ""
-            lines += [f"**({eq.label})** <a id=\"{anchor}\"></a> *{KIND_NOTE[eq.kind]}*.{note}", "",
-                      f"$$ {eq.latex()} \\tag{{{name}:{eq.label}}} $$", ""]
+            lines += [f"**({k}.{j}) {eq.label}** <a id=\"{anchor}\"></a> *{KIND_NOTE[eq.kind]}*.{note}", "",
+                      f"$$ {eq.latex()} \\tag{{{k}.{j}}} $$", ""]
     return "\n".join(lines)
 
 
 def export_derivations(fmt: str, out_dir: str | Path) -> Path:
-    """Write ``derivations.tex`` or ``derivations.md`` into ``out_dir`` and return its path."""
-    if fmt not in ("tex", "md"):
-        raise ValueError(f"fmt must be 'tex' or 'md', got {fmt!r}")
+    """Write the derivations into ``out_dir`` and return the file's path: ``derivations.tex``
+    (handout), ``derivation-slides.tex`` (beamer) or ``derivations.md``."""
+    if fmt not in ("tex", "md", "beamer"):
+        raise ValueError(f"fmt must be 'tex', 'beamer' or 'md', got {fmt!r}")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    derivations = all_derivations()
-    text = derivations_latex(derivations) if fmt == "tex" else derivations_markdown(derivations)
-    path = out_dir / f"derivations.{fmt}"
+    text = {"tex": derivations_latex, "beamer": derivations_beamer, "md": derivations_markdown}[fmt](all_derivations())
+    path = out_dir / ("derivation-slides.tex" if fmt == "beamer" else f"derivations.{fmt}")
     path.write_text(text, encoding="utf-8")
     return path
 
