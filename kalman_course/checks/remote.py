@@ -61,8 +61,7 @@ class Session:
             decoded = plain_data.decode(answer, from_kernel=True)
         except plain_data.NotPlainData as exc:
             return {"raised": plain_data.Raised("NotPlainData", f"the kernel's answer was not plain data: {exc}")}
-        if type(decoded) is not dict or not ({"result", "raised", "not_callable"} & decoded.keys()
-                                             or "defined" in decoded):
+        if type(decoded) is not dict or not decoded.keys() & {"result", "raised", "not_callable", "defined"}:
             return {"raised": plain_data.Raised("NotPlainData", "the kernel's answer was malformed")}
         return decoded
 

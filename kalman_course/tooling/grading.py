@@ -337,9 +337,9 @@ def _fresh_session(timeout: float):
 def _keep_a_spare_kernel() -> None:
     """Worker set-up of :func:`grade_many`: import the checks and start a kernel ahead."""
     global _spare_session
-    from kalman_course.tooling.kernel_session import KernelSession
-
     from multiprocessing.util import Finalize
+
+    from kalman_course.tooling.kernel_session import KernelSession
 
     _spare_session = KernelSession(120.0)
     # a worker leaves through os._exit, which skips atexit: multiprocessing's own hook stops the spare

@@ -24,7 +24,7 @@ from jupyter_client.kernelspec import KernelSpec, KernelSpecManager
 from jupyter_client.manager import KernelManager
 
 from kalman_course.checks.kernel_agent import COMM_TARGET
-from kalman_course.checks.plain_data import Opaque, Raised, encode
+from kalman_course.checks.plain_data import Raised, encode
 from kalman_course.checks.remote import KernelLost, Session
 
 #: Seconds between two looks at whether the kernel is still alive while waiting for it.
@@ -78,15 +78,14 @@ class KernelSession(Session):
         self.deadline = None  # set by the grader for the check that is running
         self.timed_out = False
         self.folder = tempfile.mkdtemp(prefix="kalman-grade-")
-        cwd = self.folder
         self._comm_id = None
         env = dict(os.environ)
         env["MPLBACKEND"] = "Agg"  # plots are not graded: draw them nowhere (no PNG rendering)
         env["PYDEVD_DISABLE_FILE_VALIDATION"] = "1"  # no debugger warning on stderr
-        env["IPYTHONDIR"] = os.path.join(cwd, ".ipython")  # a profile of its own: no shared start-up files
+        env["IPYTHONDIR"] = os.path.join(self.folder, ".ipython")  # a profile of its own: no shared start-up files
         self.km = KernelManager(kernel_spec_manager=_ThisPython(), kernel_name="python3")
         # its own log (a KeyboardInterrupt after a timeout, ...) is not the grader's output
-        self.km.start_kernel(cwd=cwd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        self.km.start_kernel(cwd=self.folder, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         self.kc = None
 
     def _connect(self) -> None:
@@ -220,9 +219,7 @@ class KernelSession(Session):
         if not isinstance(answer, str):
             why = "the notebook did not answer the grader (its kernel's comms were changed?)"
             return encode({"raised": Raised("RuntimeError", why)}, towards_kernel=False)
-        if len(answer) > self.MAX_ANSWER:
-            return encode({"result": Opaque(f"answer of {len(answer)} characters")}, towards_kernel=False)
-        return answer
+        return answer  # Session._ask bounds its size and decodes it
 
     def _comm_reply(self, msg_id: str, timeout: float):
         """The data of the agent's reply to ``msg_id``; {} if the kernel went idle without one;
