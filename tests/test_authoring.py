@@ -1,6 +1,9 @@
-"""The exercise builder: fix-region parsing, deterministic builds, sync with solutions/."""
+"""The exercise builder: fix-region parsing, deterministic builds, sync with solutions/,
+and what a released exercise must (its first screen, a whole step to write) and must not
+(the reference's outputs) contain."""
 
 import hashlib
+import re
 import shutil
 
 import nbformat
@@ -13,6 +16,7 @@ from kalman_course.tooling.authoring import AuthoringError
 from conftest import ROOT
 
 SOLUTIONS = sorted((ROOT / "solutions").glob("[0-9][0-9]_*.ipynb"))
+EXERCISES = sorted((ROOT / "exercises").glob("[0-9][0-9]_*.ipynb"))
 
 REGION = """def f(x):
     # BEGIN SOLUTION f_check
@@ -23,10 +27,10 @@ REGION = """def f(x):
     return y"""
 
 
-def _grader(check="f_check", points=2):
+def _grader(check="f_check", points=2, **extra):
     cell = new_code_cell(f"checks.{check}(f)")
     cell.metadata["tags"] = ["grader"]
-    cell.metadata["kalman_course"] = {"check": check, "points": points}
+    cell.metadata["kalman_course"] = {"check": check, "points": points, **extra}
     return cell
 
 
@@ -48,6 +52,20 @@ def test_render_replaces_region_with_uncommented_stub(tmp_path):
     assert (stub.stub_id, stub.check) == ("cell0:0", "f_check")
 
 
+def test_a_multi_line_region_becomes_a_multi_line_stub(tmp_path):
+    source = """def step(x, P):
+    # BEGIN SOLUTION f_check
+    x = 2 * x
+    P = 4 * P
+    return x, P
+    # STUB
+    # # fix this: the whole step, mean and covariance
+    # return x, P
+    # END SOLUTION"""
+    ex = authoring.build_exercise(_solution(tmp_path, source))
+    assert ex.cells[0].source == "def step(x, P):\n    # fix this: the whole step, mean and covariance\n    return x, P"
+
+
 def test_exercise_gets_grader_ids_tags_and_chapter(tmp_path):
     ex = authoring.build_exercise(_solution(tmp_path))
     code, grader = ex.cells
@@ -56,6 +74,28 @@ def test_exercise_gets_grader_ids_tags_and_chapter(tmp_path):
     assert code.metadata["tags"] == ["nbval-ignore-output"]
     assert ex.metadata["kalman_course"]["chapter"] == "07"
     assert ex.metadata["kalman_course"]["graders"] == {"f_check": 2}
+    assert ex.metadata["kalman_course"]["challenges"] == []
+
+
+def test_the_builder_drops_the_references_outputs(tmp_path):
+    path = _solution(tmp_path)
+    nb = nbformat.read(path, as_version=4)
+    nb.cells[0].outputs = [nbformat.v4.new_output("stream", name="stdout", text="answer 42\n")]
+    nb.cells[0].execution_count = 1
+    nb.cells[1].outputs = [nbformat.v4.new_output("stream", name="stdout", text="f_check: passed\n")]
+    nb.cells[1].execution_count = 2
+    nbformat.write(nb, path)
+    ex = authoring.build_exercise(path)
+    assert [(c.outputs, c.execution_count) for c in ex.cells] == [([], None), ([], None)]
+
+
+def test_a_challenge_is_named_in_the_release(tmp_path):
+    two = REGION + "\n\n" + REGION.replace("f_check", "bonus").replace("def f", "def g")
+    ex = authoring.build_exercise(_solution(tmp_path, two, graders=[_grader(), _grader("bonus", 3, challenge=True)]))
+    assert ex.metadata["kalman_course"]["graders"] == {"f_check": 2, "bonus": 3}
+    assert ex.metadata["kalman_course"]["challenges"] == ["bonus"]
+    with pytest.raises(AuthoringError, match="challenge"):
+        authoring.build_exercise(_solution(tmp_path, graders=[_grader(challenge="yes")]))
 
 
 @pytest.mark.parametrize("source, message", [
@@ -109,3 +149,37 @@ def test_every_solution_has_at_least_three_stubs(path):
     stubs = authoring.list_stubs(nbformat.read(path, as_version=4))
     assert len(stubs) >= 3
     assert all("# fix this" in s.stub for s in stubs)
+
+
+@pytest.mark.parametrize("path", EXERCISES, ids=lambda p: p.stem)
+def test_no_exercise_contains_an_output_of_the_reference(path):
+    nb = nbformat.read(path, as_version=4)
+    shipped = [(c["id"], len(c.outputs), c.execution_count) for c in nb.cells
+               if c.cell_type == "code" and (c.outputs or c.execution_count is not None)]
+    assert shipped == [], f"{path.name} ships outputs (cell, outputs, execution count): {shipped}"
+    # no figure or result pasted into the text either
+    assert not [c["id"] for c in nb.cells if c.cell_type == "markdown" and c.get("attachments")]
+
+
+@pytest.mark.parametrize("path", EXERCISES, ids=lambda p: p.stem)
+def test_every_exercise_opens_with_what_when_and_how(path):
+    first = nbformat.read(path, as_version=4).cells[0]
+    assert first.cell_type == "markdown"
+    lines = first.source.splitlines()
+    chapter = path.name[:2]
+    assert re.match(rf"^# Exercise {chapter} — \S", lines[0]), lines[0]
+    for label in ("**You build:**", "**Time:**", "**Read first:**", "**Check yourself:**"):
+        assert label in first.source, f"{path.name}: the first screen has no {label}"
+    assert re.search(r"\*\*Time:\*\* about \d+ minutes", first.source), "the time, in minutes"
+    assert re.search(rf"\*\*Read first:\*\* lecture {chapter} §\d", first.source), "the lecture sections"
+    assert f"pytest --nbval exercises/{path.name}" in first.source
+    assert f"kalman-course grade exercises/{path.name}" in first.source
+    assert len(lines) <= 22, f"{path.name}: the first screen has {len(lines)} lines"
+
+
+@pytest.mark.parametrize("path", SOLUTIONS, ids=lambda p: p.stem)
+def test_every_exercise_has_a_whole_step_to_write(path):
+    stubs = authoring.list_stubs(nbformat.read(path, as_version=4))
+    longest = max(len([line for line in s.solution.splitlines() if line.strip() and not line.strip().startswith("#")])
+                  for s in stubs)
+    assert longest >= 3, f"{path.name}: no fix section replaces a step of three or more lines"

@@ -135,3 +135,24 @@ def test_a_function_not_named_check_something_is_rejected(name):
     fn.__name__ = name
     with pytest.raises(ValueError, match=r"@check decorates a function named check_<name>"):
         harness.check(fn)
+
+
+def test_a_failed_check_shows_its_hint_first_and_no_grader_frames(capsys):
+    # what JupyterLab (and nbval) show is IPython's rendering of the exception
+    from IPython.core.interactiveshell import InteractiveShell
+
+    shell = InteractiveShell.instance()
+    shell.user_ns.update(checks=checks, kf_predict=lambda x_hat, P_hat, F, Q: (F @ x_hat, F @ P_hat @ F.T))
+    capsys.readouterr()
+    result = shell.run_cell("checks.kf_predict(kf_predict)")
+    shown = re.sub(r"\x1b\[[0-9;]*m", "", capsys.readouterr().out).strip().splitlines()
+    assert isinstance(result.error_in_exec, checks.CheckFailed)
+    message = str(result.error_in_exec)
+    assert message.startswith("kf_predict: ") and " Hint: " in message  # the gradebook's text, unchanged
+    saw, hint = message.removeprefix("kf_predict: ").split(" Hint: ", 1)
+    assert shown == ["kf_predict: not passed yet", f"Hint: {hint}", f"What the check saw: {saw}"]
+
+
+def test_a_message_without_a_hint_is_shown_whole():
+    assert checks.CheckFailed("kf_gain: K has shape (3,), expected (6, 3)")._render_traceback_() == [
+        "\x1b[31m\x1b[1mkf_gain: not passed yet\x1b[0m", "K has shape (3,), expected (6, 3)"]

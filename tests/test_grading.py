@@ -162,6 +162,31 @@ def test_table_and_gradebooks(tmp_path):
     assert '"points": 2' in (tmp_path / "g.json").read_text()
 
 
+def test_a_challenge_is_counted_apart_from_the_core(tmp_path):
+    core = [grading.CheckResult("f", "grader-f", 2, 2), grading.CheckResult("g", "grader-g", 0, 3, "g: wrong")]
+    done = grading.NotebookResult("a/01_x.ipynb", "alice", "01",
+                                  checks=core + [grading.CheckResult("h", "grader-h", 4, 4, challenge=True)])
+    undone = grading.NotebookResult("b/01_x.ipynb", "bob", "01",
+                                    checks=core[:1] + [grading.CheckResult("g", "grader-g", 3, 3),
+                                                       grading.CheckResult("h", "grader-h", 0, 4, "h: no", challenge=True)])
+    assert (done.points, done.possible, done.challenge_points, done.challenge_possible) == (2, 5, 4, 4)
+    assert (undone.points_text, undone.hint) == ("5/5 +0/4", "")  # an undone challenge is no problem
+    assert done.hint == "g: wrong"
+    table = grading.format_table([done, undone])
+    assert "2/5 +4/4" in table and "total 7/10 points" in table and "counted apart" in table
+    assert "optional challenge done by 1 of 2" in grading.format_summary([done, undone])
+    grading.write_csv([done, undone], tmp_path / "g.csv")
+    header, first = (tmp_path / "g.csv").read_text().splitlines()[:2]
+    assert "challenge_points,challenge_possible" in header and ",2,5,4,4," in first
+    grading.write_json([done, undone], tmp_path / "g.json")
+    again = grading.read_json(tmp_path / "g.json")
+    assert [(r.points_text, [c.challenge for c in r.checks]) for r in again] == [
+        ("2/5 +4/4", [False, False, True]), ("5/5 +0/4", [False, False, True])]
+    feedback = {p.stem: p.read_text() for p in grading.write_feedback([done, undone], tmp_path / "fb")}
+    assert "**h** (optional challenge 0/4): not done" in feedback["bob"]
+    assert "Optional challenge: 4/4 points" in feedback["alice"]
+
+
 def test_review_flags_reach_table_summary_and_gradebook(tmp_path):
     flagged = grading.NotebookResult("a/01_x.ipynb", "alice", "01", flags=["cell c: imports `f` from `m`"],
                                      checks=[grading.CheckResult("f", "grader-f", 2, 2)])

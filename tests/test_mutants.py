@@ -1,9 +1,14 @@
 """Every plausible mistake in the catalogues fails the check it targets, with a hint that
-names it; every correct variant passes. See ``tests/mutation_harness.py``."""
+names it; every correct variant passes; every exercise stub is one of the mistakes. See
+``tests/mutation_harness.py``."""
 
+import ast
+
+import nbformat
 import pytest
 
-from mutation_harness import catalogues, solution
+from kalman_course.tooling import authoring
+from mutation_harness import SOLUTIONS, catalogues, solution
 
 CATALOGUES = catalogues()
 
@@ -42,3 +47,27 @@ def test_every_graded_check_has_mutants():
               for check in solution(module.NOTEBOOK).grader_call}
     covered = {(module.NOTEBOOK, edit.check) for module in CATALOGUES.values() for edit in module.MUTANTS}
     assert sorted(graded - covered) == []
+
+
+def _code(source: str) -> str:
+    """A cell's code as Python sees it: comments and layout do not count."""
+    return ast.dump(ast.parse(source))
+
+
+STUBS = [(module.NOTEBOOK, stub) for module in CATALOGUES.values()
+         for stub in authoring.list_stubs(nbformat.read(SOLUTIONS / f"{module.NOTEBOOK}.ipynb", as_version=4))]
+
+
+@pytest.mark.parametrize("notebook, stub", STUBS, ids=[f"{nb}-{s.check}-{s.stub_id}" for nb, s in STUBS])
+def test_every_stub_is_a_catalogued_mutant(notebook, stub):
+    # the exercise's own stub is the first mistake a learner meets: its hint must name it,
+    # which the catalogue's mutant tests check; here, that the catalogue holds it
+    sol = solution(notebook)
+    cell_id, _, number = stub.stub_id.rpartition(":")
+    cell = next(c for c in sol.code if c.id == cell_id)
+    wanted = _code(authoring.render_source(cell.source, {int(number)}))
+    module = next(m for m in CATALOGUES.values() if m.NOTEBOOK == notebook)
+    found = [edit.mistake for edit in module.MUTANTS if edit.check == stub.check and sol.cell_of(edit) is cell
+             and _code(authoring.render_source(sol.edited_source(edit), set())) == wanted]
+    assert found, (f"the stub {stub.stub.strip()!r} of {notebook} ({stub.check}) is not a mutant in "
+                   f"its catalogue: add Edit({stub.check!r}, <reference lines>, <stub lines>, keyword=...)")

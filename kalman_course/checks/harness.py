@@ -27,6 +27,22 @@ SUCCESS = "{name}: passed"
 class CheckFailed(AssertionError):
     """A learner's code gave a wrong answer. The message names the problem and a hint."""
 
+    def _render_traceback_(self) -> list[str]:
+        """What IPython shows for a failed check (JupyterLab, nbval): the hint first, then
+        what the check saw, and none of the grader's own frames (they are not the learner's
+        to read). ``str(exc)``, which gradebooks record, is unchanged."""
+        name, _, rest = str(self).partition(": ")
+        if not rest:  # a message without the "<check>: " prefix
+            name, rest = "check", str(self)
+        saw, _, hint = rest.partition(" Hint: ")
+        red, bold, reset = "\x1b[31m", "\x1b[1m", "\x1b[0m"
+        lines = [f"{red}{bold}{name}: not passed yet{reset}"]
+        if hint:
+            lines += [f"{bold}Hint:{reset} {hint}", f"What the check saw: {saw}"]
+        else:
+            lines.append(saw)
+        return lines
+
 
 #: Prefix of every check function's name; the rest of the name is the check's name.
 CHECK_PREFIX = "check_"

@@ -18,7 +18,8 @@ Grader cells are code cells tagged ``grader`` whose metadata holds
 ``{"kalman_course": {"check": NAME, "points": N}}``. The builder gives them the id
 ``grader-NAME`` and the nbval tag ``nbval-check-output``; every other code cell of the
 exercise is tagged ``nbval-ignore-output``, so ``pytest --nbval`` grades exactly the
-grader cells. The exercise keeps the solution's stored outputs.
+grader cells. The exercise ships without outputs (nothing of the reference's results);
+grader cells marked ``"challenge": true`` grade optional challenges, counted apart.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from kalman_course.tooling.cells import (CHECK_OUTPUT_TAG, FIX_THIS, GRADER_TAG,  # noqa: F401 (re-exported)
-                                         IGNORE_OUTPUT_TAG, AuthoringError, grader_info)
+                                         IGNORE_OUTPUT_TAG, AuthoringError, grader_info, is_challenge)
 from kalman_course.tooling.notebooks import normalise, notebook_text
 from kalman_course.tooling.review import solution_course_calls
 
@@ -128,6 +129,30 @@ def list_stubs(nb) -> list[Stub]:
     return stubs
 
 
+def render_source(source: str, chosen=None, where: str = "cell") -> str:
+    """Return one cell's source with its fix regions replaced by their stubs.
+
+    Parameters
+    ----------
+    source : str
+        A solution cell's source.
+    chosen : set of int, optional
+        Which regions (numbered from 0 in the cell) to replace; None means all of them.
+        Regions not chosen keep their solution lines (without markers).
+    where : str
+        How to name the cell in an :class:`AuthoringError`.
+    """
+    text, n = [], 0
+    for piece in _parse_regions(source, where):
+        if isinstance(piece, str):
+            text.append(piece)
+            continue
+        _, sol, stub = piece
+        text.append(stub if chosen is None or n in chosen else sol)
+        n += 1
+    return "\n".join(text)
+
+
 def render(nb, stub_ids: set[str] | None = None):
     """Return a copy of ``nb`` with the chosen fix regions replaced by their stubs.
 
@@ -143,16 +168,9 @@ def render(nb, stub_ids: set[str] | None = None):
     for cell in out.cells:
         if cell.cell_type != "code":
             continue
-        text, n = [], 0
-        for piece in _parse_regions(cell.source, f"cell {cell.get('id')}"):
-            if isinstance(piece, str):
-                text.append(piece)
-                continue
-            _, sol, stub = piece
-            use_stub = stub_ids is None or f"{cell['id']}:{n}" in stub_ids
-            text.append(stub if use_stub else sol)
-            n += 1
-        cell.source = "\n".join(text)
+        chosen = None if stub_ids is None else {int(sid.rpartition(":")[2]) for sid in stub_ids
+                                                if sid.rpartition(":")[0] == cell["id"]}
+        cell.source = render_source(cell.source, chosen, f"cell {cell.get('id')}")
     return out
 
 
@@ -197,6 +215,11 @@ def build_exercise(solution_path: str | Path):
         else:
             tags.append(IGNORE_OUTPUT_TAG)
         cell.metadata["tags"] = tags
+        # The learner starts from a blank page: no output of the reference is shipped (no
+        # "passed" lines, plots or printed results). nbval compares no output of a cell
+        # that was never run, so each cell is judged by whether it raises.
+        cell.outputs = []
+        cell.execution_count = None
     for stub in stubs:
         if stub.check not in graders:
             raise AuthoringError(f"{solution_path}: stub {stub.stub_id} names check {stub.check!r}, "
@@ -208,6 +231,8 @@ def build_exercise(solution_path: str | Path):
         "chapter": chapter_of(solution_path),
         "source": f"solutions/{solution_path.name}",
         "graders": graders,
+        # optional challenges: graded like the rest, their points counted apart
+        "challenges": sorted(grader_info(c)[0] for c in ex.cells if is_challenge(c)),
         # what a correct version of each function to write calls of the course's code: the
         # review's baseline (a learner calling anything else of it is worth a look)
         "course_calls": solution_course_calls(nb, ex),

@@ -23,7 +23,13 @@ def grader_info(cell) -> tuple[str, int] | None:
     if cell.cell_type != "code" or GRADER_TAG not in cell.metadata.get("tags", []):
         return None
     meta = cell.metadata.get("kalman_course", {})
-    if "check" not in meta or not isinstance(meta.get("points"), int) or meta["points"] <= 0:
-        raise AuthoringError(f"grader cell {cell.get('id')!r} needs metadata "
-                             "kalman_course = {'check': NAME, 'points': positive int}")
+    if "check" not in meta or not isinstance(meta.get("points"), int) or meta["points"] <= 0 \
+            or not isinstance(meta.get("challenge", False), bool):
+        raise AuthoringError(f"grader cell {cell.get('id')!r} needs metadata kalman_course = "
+                             "{'check': NAME, 'points': positive int} (and optionally 'challenge': true)")
     return meta["check"], meta["points"]
+
+
+def is_challenge(cell) -> bool:
+    """Whether a grader cell grades an optional challenge (its points are counted apart)."""
+    return grader_info(cell) is not None and cell.metadata["kalman_course"].get("challenge", False)

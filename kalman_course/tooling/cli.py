@@ -90,7 +90,7 @@ def _cmd_grade(args: argparse.Namespace) -> int:
 
     def progress(done, total, r):
         who = f"{r.learner}: " if r.learner != "-" else ""
-        print(f"[{done}/{total}] {who}{r.path}: {r.status}, {r.points}/{r.possible} points "
+        print(f"[{done}/{total}] {who}{r.path}: {r.status}, {r.points_text} points "
               f"({r.seconds:.1f} s)", flush=True)
 
     class_size = len(submissions)

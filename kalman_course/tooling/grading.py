@@ -25,7 +25,7 @@ import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from kalman_course.tooling.cells import CHECK_OUTPUT_TAG, GRADER_TAG, grader_info
+from kalman_course.tooling.cells import CHECK_OUTPUT_TAG, GRADER_TAG, grader_info, is_challenge
 from kalman_course.tooling.notebooks import NotebookError, read_notebook
 from kalman_course.tooling.review import review_flags
 
@@ -50,6 +50,7 @@ class CheckResult:
     possible: int
     message: str = ""
     in_kernel: bool | None = None  # the grader cell's own verdict in the kernel (only when compared)
+    challenge: bool = False  # an optional challenge: its points are counted apart from the core's
 
 
 @dataclass
@@ -73,19 +74,37 @@ class NotebookResult:
 
     @property
     def points(self) -> int:
-        return sum(c.points for c in self.checks)
+        """The core points: every check but the optional challenges."""
+        return sum(c.points for c in self.checks if not c.challenge)
 
     @property
     def possible(self) -> int:
-        return sum(c.possible for c in self.checks)
+        return sum(c.possible for c in self.checks if not c.challenge)
+
+    @property
+    def challenge_points(self) -> int:
+        return sum(c.points for c in self.checks if c.challenge)
+
+    @property
+    def challenge_possible(self) -> int:
+        return sum(c.possible for c in self.checks if c.challenge)
+
+    @property
+    def points_text(self) -> str:
+        """``"12/14"``, or ``"12/14 +2/3"`` with the optional challenges' points."""
+        text = f"{self.points}/{self.possible}"
+        if self.challenge_possible:
+            text += f" +{self.challenge_points}/{self.challenge_possible}"
+        return text
 
     @property
     def hint(self) -> str:
-        """The first line of the first failing check's message (or the run problem)."""
+        """The first failing core check's message (or the run problem); a challenge left
+        undone is no problem to report."""
         if self.status not in RAN_TO_THE_END and self.detail:
             return self.detail
         for c in self.checks:
-            if c.points < c.possible:
+            if c.points < c.possible and not c.challenge:
                 return c.message
         return ""
 
@@ -425,7 +444,7 @@ def grade_submission(submission, release: dict, result: NotebookResult, *, timeo
         passed = bool(verdict and verdict.passed)
         message = verdict.message if verdict else "not run"
         result.checks.append(CheckResult(check, cell["id"], possible if passed else 0, possible, message,
-                                         verdict.in_kernel if verdict else None))
+                                         verdict.in_kernel if verdict else None, is_challenge(cell)))
     return result
 
 
@@ -496,7 +515,11 @@ def format_summary(results: list[NotebookResult]) -> str:
             by_chapter[r.chapter].append(r)
     for chapter, rs in sorted(by_chapter.items()):
         mean = sum(r.points for r in rs) / len(rs)
-        lines.append(f"chapter {chapter}: {len(rs)} graded, mean {mean:.1f}/{rs[0].possible} points")
+        line = f"chapter {chapter}: {len(rs)} graded, mean {mean:.1f}/{rs[0].possible} points"
+        if rs[0].challenge_possible:
+            done = sum(r.challenge_points == r.challenge_possible for r in rs)
+            line += f"; optional challenge done by {done} of {len(rs)}"
+        lines.append(line)
     return "\n".join(lines)
 
 
@@ -515,6 +538,9 @@ def write_feedback(results: list[NotebookResult], folder: str | Path) -> list[Pa
         for r in sorted(rs, key=lambda r: (r.chapter, r.path)):
             lines += [f"## Chapter {r.chapter or '?'}: `{Path(r.path).name}`", "",
                       f"{r.points}/{r.possible} points — {r.status}", ""]
+            if r.challenge_possible:
+                lines += [f"Optional challenge: {r.challenge_points}/{r.challenge_possible} points "
+                          "(counted apart from the points above).", ""]
             if r.status not in RAN_TO_THE_END:
                 lines += [f"The notebook could not be graded to the end: {r.detail}.", ""]
             if r.tampered or r.readded:
@@ -528,8 +554,9 @@ def write_feedback(results: list[NotebookResult], folder: str | Path) -> list[Pa
             if r.learner_errors:
                 lines.append("")
             for c in r.checks:
-                mark = "passed" if c.points == c.possible else "failed"
-                lines.append(f"- **{c.check}** ({c.points}/{c.possible}): {mark}" + (f" — {c.message}" if c.message else ""))
+                mark = "passed" if c.points == c.possible else ("not done" if c.challenge else "failed")
+                label = f"{c.check}** (optional challenge " if c.challenge else f"{c.check}** ("
+                lines.append(f"- **{label}{c.points}/{c.possible}): {mark}" + (f" — {c.message}" if c.message else ""))
             lines.append("")
         # grading yourself ("-"): feedback.md, not "-.md"
         safe = "feedback" if learner == "-" else (re.sub(r"[^\w.-]", "_", learner) or "_")
@@ -546,8 +573,7 @@ def format_table(results: list[NotebookResult], every_hint: bool = False) -> str
     for r in results:
         hint = r.hint.splitlines()[0] if r.hint else ""
         hint = hint.removeprefix("CheckFailed: ")
-        rows.append((r.learner or "-", r.chapter or "?", Path(r.path).name, f"{r.points}/{r.possible}",
-                     r.status, hint))
+        rows.append((r.learner or "-", r.chapter or "?", Path(r.path).name, r.points_text, r.status, hint))
     if all(row[0] == "-" for row in rows[1:]):
         rows = [row[1:] for row in rows]  # grading yourself: no learner column
     ncol = len(rows[0]) - 1
@@ -556,6 +582,8 @@ def format_table(results: list[NotebookResult], every_hint: bool = False) -> str
     lines.insert(1, "-" * min(sum(widths) + 2 * ncol + 10, 120))
     total, possible = sum(r.points for r in results), sum(r.possible for r in results)
     lines.append(f"total {total}/{possible} points")
+    if any(r.challenge_possible for r in results):
+        lines.append("(+a/b: the optional challenges' points, counted apart from the core)")
     for r in results:
         if r.tampered or r.readded:
             lines.append(f"note: {Path(r.path).name}: grader cells restored "
@@ -578,10 +606,11 @@ def write_csv(results: list[NotebookResult], path: str | Path) -> None:
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     with open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
-        w.writerow(["learner", "notebook", "chapter", "status", "points", "possible", "checks",
-                    "tampered", "readded", "flags", "hint"])
+        w.writerow(["learner", "notebook", "chapter", "status", "points", "possible", "challenge_points",
+                    "challenge_possible", "checks", "tampered", "readded", "flags", "hint"])
         for r in results:
-            w.writerow([r.learner, r.path, r.chapter, r.status, r.points, r.possible,
+            w.writerow([r.learner, r.path, r.chapter, r.status, r.points, r.possible, r.challenge_points,
+                        r.challenge_possible,
                         ";".join(f"{c.check}={c.points}/{c.possible}" for c in r.checks),
                         ";".join(r.tampered), ";".join(r.readded), " | ".join(r.flags), r.hint])
 
@@ -601,7 +630,8 @@ def shard_of(submissions: list[tuple], k: int, n: int) -> list[int]:
 
 def write_json(results: list[NotebookResult], path: str | Path) -> None:
     """Write the full results (every check's message included) as JSON."""
-    data = [dict(asdict(r), points=r.points, possible=r.possible, hint=r.hint) for r in results]
+    data = [dict(asdict(r), points=r.points, possible=r.possible, challenge_points=r.challenge_points,
+                 challenge_possible=r.challenge_possible, hint=r.hint) for r in results]
     for record in data:
         del record["seconds"]
         for c in record["checks"]:
