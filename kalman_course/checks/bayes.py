@@ -95,8 +95,10 @@ def check_door_likelihood(sensor_likelihood):
     for k, (world, p) in enumerate(_LIKELIHOOD_CASES):
         if _same(got[k, 0], got[k, 1]):
             raise CheckFailed(f"your likelihood is the same for z=0 and z=1 (p_correct={p}): it must "
-                              "depend on z. Hint: compare the map with the measurement, world == z "
-                              "(not world == 1)")
+                              "depend on z. It is p(z | x = i) for the reading z that was actually "
+                              "received: after a 'wall' reading the wall cells are the likely ones, "
+                              "after a 'door' reading the door cells (compare the map with z, not "
+                              "with a door)")
     for k, (world, p) in enumerate(_LIKELIHOOD_CASES):
         # a fixed p_correct is named once the first case (p = 0.9, where a fixed 0.9 is
         # right) has been compared, so that a fixed 1/0 sensor gets its own hint first
@@ -167,8 +169,9 @@ def check_histogram_update(histogram_update):
                 + (" (your values are proportional to the right ones: only the normaliser is wrong)"
                    if proportional else ""))
         _expect(got, want, "posterior", lambda: [
-            (prior, "the posterior equals the prior: the likelihood is missing, "
-                    "posterior ∝ likelihood × prior"),
+            (prior, "the posterior equals the prior: the measurement was not used (the "
+                    "likelihood is missing). Bayes' rule weighs each cell's prior by how well "
+                    "that cell explains the reading, then normalises (lecture 01 §2)"),
             (bayes.normalise(prior + likelihood),
              "Bayes' rule multiplies prior and likelihood; it does not add them"),
             (bayes.normalise(likelihood), "the prior is missing: posterior ∝ likelihood × prior"),
@@ -213,9 +216,11 @@ def check_histogram_predict(histogram_predict):
                               "transition @ belief")
         transposed = transition.T @ belief
         _expect(got, want, "predicted belief", lambda: [
-            (transposed, "the transition matrix is transposed: transition[i, j] = p(x_k = i | "
-                         "x_k-1 = j), so sum over the columns j, transition @ belief (not "
-                         "belief @ transition, transition.T @ belief, or a sum over axis 0)"),
+            (transposed, "the transition matrix is transposed (the robot moves backwards): "
+                         "transition[i, j] = p(x_k = i | x_k-1 = j) is the probability of moving "
+                         "from cell j to cell i, so p(x_k = i) sums over the cells j the robot "
+                         "comes from, the columns of row i (belief @ transition and "
+                         "transition.T @ belief sum over the rows)"),
             (transposed / transposed.sum(), "the transition matrix is transposed (then "
                                             "normalised): transition @ belief sums to 1 by itself"),
             (belief, "the predicted belief equals the belief you started from: either the motion "
@@ -312,8 +317,9 @@ def _filter_mistakes(index: int) -> list:
     n = len(belief0)
     mistakes = [
         (_variant_filter(*args, restart=True),
-         "each step restarts from belief0: the recursion must carry the previous posterior "
-         "forward"),
+         "each step restarts from belief0 and uses its own reading only: the filter neither "
+         "moves nor remembers. Each step's prior is the previous posterior, moved by the "
+         "motion model (no motion before the first reading)"),
         (_variant_filter(*args, from_belief0=True),
          "each step predicts from belief0: predict from the previous posterior"),
         (_variant_filter(*args, no_predict=True),
@@ -393,3 +399,70 @@ def check_histogram_filter(run_histogram_filter):
                                       f"same beliefs whatever {ignored} is: use the {ignored} "
                                       "argument, not a fixed value") from None
             raise
+
+
+# ---------------------------------------------------------------------------------------
+# the motion model (optional challenge)
+# ---------------------------------------------------------------------------------------
+
+#: (n, step_probs): the notebook's corridor; a model that also steps back and jumps three
+#: cells; and one whose three offsets all land on the same cell (2 ≡ 7 ≡ −3 mod 5), so
+#: that writing each probability instead of adding it loses mass.
+_MOTION_CASES = ((20, {0: 0.1, 1: 0.8, 2: 0.1}),
+                 (7, {-1: 0.2, 0: 0.3, 3: 0.5}),
+                 (5, {2: 0.5, 7: 0.25, -3: 0.25}))
+
+
+def _unwrapped_model(n: int, step_probs: dict, direction: int) -> np.ndarray:
+    """The corridor model without the wrap-around (a straight corridor whose robot falls off
+    the end), stepping forward (``direction`` 1) or, transposed, backward (−1)."""
+    return sum(prob * np.eye(n, k=-direction * offset) for offset, prob in step_probs.items())
+
+
+def _overwritten_model(n: int, step_probs: dict) -> np.ndarray:
+    """The corridor model with each probability written (=) instead of added (+=)."""
+    transition = np.zeros((n, n))
+    for offset, prob in step_probs.items():
+        for j in range(n):
+            transition[(j + offset) % n, j] = prob
+    return transition
+
+
+@check
+def check_corridor_motion_model(circular_motion_model):
+    """The learner's ``circular_motion_model(n, step_probs)`` builds the (n, n) transition matrix
+    ``transition[i, j]`` = p(x_k = i | x_k-1 = j) of a circular corridor."""
+    for n, step_probs in _MOTION_CASES:
+        want = bayes.circular_motion_model(n, step_probs)
+        what = f"transition matrix for n = {n}, step_probs = {step_probs}"
+        got = as_array(call(circular_motion_model, n, dict(step_probs)), what)
+        if got.shape != (n, n):
+            raise CheckFailed(f"{what} has shape {got.shape}, expected ({n}, {n}): one row and one "
+                              "column per cell, n taken from the argument")
+        if not np.allclose(got.sum(axis=0), 1.0, atol=1e-9):
+            if any(np.allclose(got, _unwrapped_model(n, step_probs, d), atol=1e-12) for d in (1, -1)):
+                raise CheckFailed(
+                    f"{what}: some columns sum to less than 1, probability is lost at the end of "
+                    "the corridor. The corridor is circular: a step past the last cell comes back "
+                    "to cell 0 (and a step back from cell 0 lands on the last cell); wrap the "
+                    "destination around")
+            if np.allclose(got, _overwritten_model(n, step_probs), atol=1e-12):
+                raise CheckFailed(
+                    f"{what}: some columns sum to less than 1. Offsets that land on the same cell "
+                    "(here all of them, modulo n) are different ways of getting there: their "
+                    "probabilities add up, the last one must not replace the others")
+            raise CheckFailed(
+                f"{what}: column sums {np.round(got.sum(axis=0), 4)}, expected all 1. Column j is "
+                "the distribution of where a robot in cell j ends up: it sums to one")
+        order = list(step_probs.values())
+        expect_close(got, want, what, mistakes=[
+            (want.T, "the model is transposed: your robot moves backwards. transition[i, j] is the "
+                     "probability of going FROM cell j TO cell i, so a step of +1 from cell j puts "
+                     "its probability in row j + 1 of column j"),
+            (bayes.circular_motion_model(n, dict(enumerate(order))),
+             "the offsets are the keys of step_probs (how many cells the robot moves), not the "
+             "positions 0, 1, 2, ... of its probabilities"),
+            (np.full((n, n), 1.0 / n), "a uniform matrix forgets the motion: each column must "
+                                       "follow step_probs"),
+        ], hint="from cell j the robot ends in cell j + offset (around the ring) with probability "
+                "step_probs[offset]; see lecture 01 §5")
