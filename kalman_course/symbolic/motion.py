@@ -163,7 +163,7 @@ def _model_derivation(name: str, registry_name: str) -> Derivation:
             Equation("limit_straight", straight, series.subs(om, 0),
                      r"as $\omega \to 0$ the turn becomes a straight line, and the series branch "
                      r"at $\omega = 0$ is that limit"),
-            Equation("series", sp.Matrix([sp.Symbol(r"f_{\mathrm{series}}")]), sp.Matrix([sp.Integer(0)]),
+            Equation("series", sp.MatrixSymbol(r"f_{\mathrm{series}}", len(x), 1), series,
                      rf"for $|\omega T| < {OMEGA_SERIES_THRESHOLD}$ the numeric model uses the Taylor "
                      rf"series of the integrand in $\omega$ up to $\omega^{{{SERIES_ORDER - 1}}}$",
                      "definition"),
