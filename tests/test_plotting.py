@@ -348,9 +348,16 @@ def test_outage_and_error_norm_figures():
     fig = plotting.plot_outage_error(t, np.abs(np.sin(t)), np.full(101, 0.5), (325.0, 355.0), title="outage")
     (ax,) = fig.axes
     labels = [text.get_text() for text in ax.get_legend().get_texts()]
-    assert "no observations" in labels and "horizontal error" in labels
+    assert "no observations" in labels and "horizontal error" in labels and "0 to 3σ" in labels
+    # a norm is never negative: the band runs from 0 to 3σ, not ±3σ
+    band = next(c for c in ax.collections if c.get_label() == "0 to 3σ")
+    heights = band.get_paths()[0].vertices[:, 1]
+    assert np.isclose(heights.min(), 0.0) and np.isclose(heights.max(), 1.5)
+    assert ax.get_ylim()[0] == 0.0
+    with pytest.raises(ValueError, match="norm"):
+        plotting.plot_outage_error(t, np.sin(t), np.full(101, 0.5), (325.0, 355.0))
     with pytest.raises(ValueError, match="sigma"):
-        plotting.plot_outage_error(t, t, -np.ones(101), (325.0, 355.0))
+        plotting.plot_outage_error(t, np.abs(t), -np.ones(101), (325.0, 355.0))
     with pytest.raises(ValueError, match="outage"):
         plotting.plot_outage_error(t, t, np.ones(101), (355.0, 325.0))
     fig = plotting.plot_error_norms({"off": (t, t * 0 + 1.0), "on": (t, t * 0 + 0.5)},

@@ -149,7 +149,7 @@ def plot_gating(errors, t_nis, nis, threshold, outlier_times=(), *, colors=(COLO
     ax1.legend()
     ax2.semilogy(t_nis, nis, ".", ms=3, color=COLORS["estimate"], label="NIS against the prior")
     ax2.axhline(threshold, color=COLORS["truth"], lw=0.8, label=f"gate {threshold:.2f}")
-    ax2.set(xlabel="tau [s]", ylabel="NIS")
+    ax2.set(xlabel="t [s]", ylabel="NIS")
     ax2.legend(loc="upper left")    # the rejected outliers sit high up, across the whole run
     fig.tight_layout()
     return fig

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from kalman_course.plotting.vocabulary import (CURVE_COLORS, _vector, plot_curves,
-                                               plot_error_with_band, plot_track, shade_spans)
+from kalman_course.plotting.vocabulary import (COLORS, CURVE_COLORS, _vector, plot_curves, plot_error_with_band,
+                                               plot_sigma_band, plot_track, shade_spans)
 
 __all__ = ["plot_track_with_zoom", "plot_pose_errors", "plot_bias_estimates", "plot_bias_sigmas",
            "plot_outage_error", "plot_error_norms"]
@@ -117,7 +117,7 @@ def plot_pose_errors(t, position_error, attitude_error, std, *, n_sigma=3, figsi
         plot_error_with_band(axes[0, i], t, position_error[:, i], std[:, i], n_sigma)
         axes[0, i].set(title=f"position error {axis}", ylabel="m")
         plot_error_with_band(axes[1, i], t, np.rad2deg(attitude_error[:, i]), np.rad2deg(std[:, 6 + i]), n_sigma)
-        axes[1, i].set(title=f"attitude error {axis}", ylabel="deg", xlabel="tau [s]")
+        axes[1, i].set(title=f"attitude error {axis}", ylabel="deg", xlabel="t [s]")
     axes[0, 0].legend()
     fig.tight_layout()
     return fig
@@ -150,8 +150,8 @@ def plot_bias_estimates(t, accel_bias, gyro_bias, *, figsize=(12, 3.5)):
     for i, axis in enumerate(_AXES):
         axes[0].plot(t, accel_bias[:, i], color=CURVE_COLORS[i], label=f"b_a {axis}")
         axes[1].plot(t, gyro_bias[:, i] * _RAD_PER_S_TO_DEG_PER_H, color=CURVE_COLORS[i], label=f"b_w {axis}")
-    axes[0].set(xlabel="tau [s]", ylabel="m/s²", title="accelerometer bias estimate")
-    axes[1].set(xlabel="tau [s]", ylabel="deg/h", title="gyroscope bias estimate")
+    axes[0].set(xlabel="t [s]", ylabel="m/s²", title="accelerometer bias estimate")
+    axes[1].set(xlabel="t [s]", ylabel="deg/h", title="gyroscope bias estimate")
     for ax in axes:
         ax.legend()
     fig.tight_layout()
@@ -190,8 +190,8 @@ def plot_bias_sigmas(results, *, axis=2, figsize=(12, 3.5)):
     fig, axes = plt.subplots(1, 2, figsize=figsize)
     plot_curves(axes[0], accel)
     plot_curves(axes[1], gyro)
-    axes[0].set(xlabel="tau [s]", ylabel="m/s²", title=f"σ of the accelerometer bias, {_AXES[axis]}")
-    axes[1].set(xlabel="tau [s]", ylabel="deg/h", title=f"σ of the gyroscope bias, {_AXES[axis]}")
+    axes[0].set(xlabel="t [s]", ylabel="m/s²", title=f"σ of the accelerometer bias, {_AXES[axis]}")
+    axes[1].set(xlabel="t [s]", ylabel="deg/h", title=f"σ of the gyroscope bias, {_AXES[axis]}")
     for ax in axes:
         ax.set_yscale("log")
         ax.legend()
@@ -201,20 +201,24 @@ def plot_bias_sigmas(results, *, axis=2, figsize=(12, 3.5)):
 
 def plot_outage_error(t, error, sigma, outage, *, n_sigma=3, title="", label="horizontal error",
                       outage_label="no observations", figsize=(9, 3.5)):
-    """An error through an outage of the observations, with the filter's ±3σ band.
+    """The size of an error through an outage of the observations, under the filter's bound.
+
+    The error drawn is a norm (never negative), so the band is one-sided: from 0 to
+    ``n_sigma`` times the filter's RMS of that norm.
 
     Parameters
     ----------
     t : array_like, shape (N,)
         Times, s.
     error : array_like, shape (N,)
-        The error drawn (e.g. the horizontal error norm), m.
+        The norm of the error (e.g. the horizontal error ‖e_xy‖), m; not negative.
     sigma : array_like, shape (N,)
-        The filter's σ of that error, m.
+        The filter's RMS of that norm, m: √(trace of the error's covariance block), e.g.
+        √(P_xx + P_yy).
     outage : (float, float)
         Start and end of the outage, s (shaded grey).
     n_sigma : float
-        Half-width of the band.
+        Height of the band in units of ``sigma``.
     title, label : str
         Title and legend label of the error.
     outage_label : str
@@ -234,10 +238,17 @@ def plot_outage_error(t, error, sigma, outage, *, n_sigma=3, title="", label="ho
         raise ValueError(f"outage must be (start, end) in s, got {outage!r}") from None
     if not (np.isfinite(start) and np.isfinite(end) and start <= end):
         raise ValueError(f"outage must be finite with start <= end, got {outage!r}")
+    t = _vector(t, "t")
+    error = _vector(error, "error", n=t.shape[0])
+    if np.any(error < 0):
+        raise ValueError("error must be a norm (not negative); draw a signed error with plot_error_with_band")
     fig, ax = plt.subplots(figsize=figsize)
     shade_spans(ax, [(start, end)], label=outage_label, color="0.93")
-    plot_error_with_band(ax, t, error, sigma, n_sigma, label=label)
-    ax.set(xlabel="tau [s]", ylabel="m", title=title)
+    # a band from 0 to n·σ: centred at n·σ/2 with half-width n·σ/2
+    half = 0.5 * np.asarray(sigma, dtype=float)
+    plot_sigma_band(ax, t, n_sigma * half, half, n_sigma, label=f"0 to {n_sigma:g}σ")
+    ax.plot(t, error, color=COLORS["estimate"], lw=1.0, label=label)
+    ax.set(xlabel="t [s]", ylabel="m", title=title, ylim=(0, None))
     ax.legend()
     fig.tight_layout()
     return fig
@@ -272,7 +283,7 @@ def plot_error_norms(curves, *, spans=None, span_label=None, colors=None, title=
     if spans is not None:
         shade_spans(ax, spans, label=span_label)
     plot_curves(ax, curves, colors=colors, lw=0.8)
-    ax.set(xlabel="tau [s]", ylabel=ylabel, title=title)
+    ax.set(xlabel="t [s]", ylabel=ylabel, title=title)
     ax.legend()
     fig.tight_layout()
     return fig
