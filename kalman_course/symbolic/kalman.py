@@ -100,16 +100,18 @@ def kalman_gain() -> Derivation:
     K = MatrixSymbol("K", n, m)
     In, Im, Znm, Zmn = Identity(n), Identity(m), ZeroMatrix(n, m), ZeroMatrix(m, n)
     A = In - K * G
-    # posterior error  e_hat = (I - K G) e_check - K n,  Cov([e_check; n]) = blkdiag(P, R)
-    T = BlockMatrix([[A, -K]])
+    # errors are estimate - truth: e_hat = x_hat - x = (I - K G) e_check + K n,
+    # Cov([e_check; n]) = blkdiag(P, R)
+    T = BlockMatrix([[A, K]])
     P_hat = A * P * A.T + K * R * K.T
     S = G * P * G.T + R
     K_opt = P * G.T * S.I
 
     equations = [
         Equation("error", MatrixSymbol(r"\hat{e}", n, 1),
-                 A * MatrixSymbol(r"\check{e}", n, 1) - K * MatrixSymbol(r"\mathbf{n}", m, 1),
-                 r"with any gain $K$, $\hat x = \check x + K (y - G \check x)$ leaves this error",
+                 A * MatrixSymbol(r"\check{e}", n, 1) + K * MatrixSymbol(r"\mathbf{n}", m, 1),
+                 r"with any gain $K$, $\hat x = \check x + K (y - G \check x)$ leaves the error "
+                 r"$\hat e = \hat x - x$ (estimate minus truth)",
                  "definition"),
         Equation("joseph", T * BlockMatrix([[P, Znm], [Zmn, R]]) * T.T, P_hat,
                  "its covariance for any gain (the Joseph form), as prior error and noise are independent"),
@@ -125,7 +127,7 @@ def kalman_gain() -> Derivation:
     return Derivation(
         name="kalman_gain",
         title="The Kalman gain minimises the trace of the posterior covariance",
-        model=(r"Prior error $\check{e} \sim \mathcal{N}(0, \check{P})$, observation "
+        model=(r"Prior error $\check{e} = \check{x} - x \sim \mathcal{N}(0, \check{P})$, observation "
                r"$y = G x + n$ with $n \sim \mathcal{N}(0, R)$ independent; update "
                r"$\hat{x} = \check{x} + K (y - G \check{x})$ with a gain $K$ to be chosen "
                r"so that $\operatorname{tr} \hat{P}$, the expected squared error, is smallest."),
