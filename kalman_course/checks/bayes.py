@@ -219,8 +219,8 @@ def check_histogram_predict(histogram_predict):
             (transposed, "the transition matrix is transposed (the robot moves backwards): "
                          "transition[i, j] = p(x_k = i | x_k-1 = j) is the probability of moving "
                          "from cell j to cell i, so p(x_k = i) sums over the cells j the robot "
-                         "comes from, the columns of row i (belief @ transition and "
-                         "transition.T @ belief sum over the rows)"),
+                         "comes from, the columns of row i (belief @ transition, "
+                         "transition.T @ belief and a sum over axis 0 sum over the rows)"),
             (transposed / transposed.sum(), "the transition matrix is transposed (then "
                                             "normalised): transition @ belief sums to 1 by itself"),
             (belief, "the predicted belief equals the belief you started from: either the motion "

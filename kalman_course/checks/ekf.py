@@ -1,4 +1,5 @@
-"""Checks for chapters 05 and 06: radar observation, residual, EKF update, iterated EKF.
+"""Checks for chapters 05 and 06: radar observation, residual, EKF update, iterated EKF,
+and chapter 06's challenge, the IEKF's convergence test in the prior's standard deviations.
 
 The radar cases are CTRV states relative to a radar: a few true states of the car on a
 KITTI excerpt (radar parked in the middle of it) and a seeded set placed at chosen
@@ -174,8 +175,8 @@ def _radar_h_variants(x):
                                            "[0, 2π)"),
         (np.array([rho**2, phi, (px * vx + py * vy) / rho**2]),
          "ρ = √(p_x² + p_y²): the square root is missing"),
-        (with_(2, v), "the range rate is the velocity projected on the line of sight, "
-                      "(p_x v_x + p_y v_y) / ρ, not the speed"),
+        (with_(2, v), "the range rate is the velocity's component along the line of sight (the unit vector "
+                      "p/ρ from the radar to the target), not the speed: a target crossing the beam has ρ̇ = 0"),
         (with_(2, -rate), "ρ̇ is positive when the target moves away: ρ̇ = +(p_x v_x + p_y v_y)/ρ, "
                           "check the sign"),
         (with_(2, rate * rho), "ρ̇ = (p_x v_x + p_y v_y)/ρ: divide by ρ (the line of sight is the unit "
@@ -227,8 +228,9 @@ def _radar_jacobian_variants(x, G):
             out[i, j] = value
         return out
 
-    cv = "the lecture's Jacobian is for the CV state [p_x, p_y, v_x, v_y]; this state is CTRV " \
-         "[p_x, p_y, v, ψ, ω]: ∂ρ̇/∂v = (p_x cos ψ + p_y sin ψ)/ρ and ∂ρ̇/∂ψ = (p_y v_x − p_x v_y)/ρ"
+    cv = "the article's Jacobian is for the CV state [p_x, p_y, v_x, v_y]; this state is CTRV " \
+         "[p_x, p_y, v, ψ, ω], and v_x = v cos ψ, v_y = v sin ψ depend on both v and ψ: by the chain rule, " \
+         "∂ρ̇/∂v = ∂ρ̇/∂v_x ∂v_x/∂v + ∂ρ̇/∂v_y ∂v_y/∂v, and likewise for ψ"
     return [
         (with_({(1, 0): py / r2, (1, 1): -px / r2}),
          "∂φ/∂p_x = −p_y/ρ² and ∂φ/∂p_y = p_x/ρ²: check the signs of the bearing row"),
@@ -531,9 +533,13 @@ def _ekf_mistakes(x_check, P_check, y, g, G, R, residual):
     if square:
         gains.append((PGt @ _inv(Gm @ P_check @ Gm + R),
                       "a transpose is missing: S = G P̌ Gᵀ + R and K = P̌ Gᵀ S⁻¹"))
+    linear = ("the predicted measurement is g(x̌), the nonlinear model; G x̌ is only its linearisation's "
+              "slope times the state")
     x_wrong = [
-        (x_check + K @ residual(y, Gm @ x_check), "the predicted measurement is g(x̌), the nonlinear model; "
-                                                  "G x̌ is only its linearisation's slope times the state"),
+        (x_check, "x̂ is the prior mean x̌ unchanged: the measurement was not used. Correct x̌ by the gain "
+                  "times the residual of y, and shrink P̌ (lecture 05 §2)"),
+        (x_check + K @ residual(y, Gm @ x_check), linear),
+        (x_check + K @ (y - Gm @ x_check), linear),
         (x_check + K @ (y - g(x_check)), "use the residual function you are given, so that bearings are "
                                          "wrapped"),
         (x_check - K @ r, "sign: x̂ = x̌ + K (y − g(x̌)), the residual is measured minus predicted"),
@@ -633,6 +639,10 @@ def _mean_step_mistakes(x_check, P_check, x_op, y, g, G, R, residual):
     with np.errstate(all="ignore"):
         sqrt_R = np.sqrt(R)
     return [
+        (x_check + K0 @ residual(y, g(x_check)), "your step does not depend on x_op: it is the EKF's step, with g "
+                                                 "linearised at the prior mean x̌. The IEKF linearises g at the "
+                                                 "operating point x_op (g(x_op) and G(x_op)), and corrects for x̌ "
+                                                 "not being that point"),
         (x_op + K @ r, "the step starts from the prior: x_{i+1} = x̌ + K (r − G (x̌ − x_op)); "
                        "the linearisation point only enters through g(x_op) and G"),
         (x_op + K @ (r - Gm @ d), "the step starts from the prior x̌, not from x_op: "
@@ -836,3 +846,116 @@ def check_iekf_update(iekf_update):
         raise CheckFailed(f"iterations is {count} ({setting}), the reference needs {expected}: {why}")
     if pending is not None:
         raise pending
+
+
+# --- chapter 06's challenge: a convergence test in the prior's standard deviations ----------
+
+def _mahalanobis(step, P):
+    """The length √(Δᵀ P⁻¹ Δ) of ``step`` in the metric of the covariance ``P``."""
+    return float(np.sqrt(step @ np.linalg.solve(P, step)))
+
+
+def _scaled(direction, P, distance):
+    """``direction`` rescaled to the Mahalanobis length ``distance`` under ``P``."""
+    return direction * (distance / _mahalanobis(direction, P))
+
+
+@functools.lru_cache(maxsize=None)
+def convergence_cases():
+    """(x_next, x_op, P_check, tol, description) for the convergence-test challenge.
+
+    The priors are those of the update cases: the chapter's KITTI beacon priors (position
+    and velocity strongly correlated: the smallest eigenvalue of the correlation matrix is
+    ≈ 0.02) and the radar priors (m, m/s, rad and rad/s, standard deviations 0.1–1.5). Each
+    gets steps chosen so that every wrong metric gives a wrong verdict somewhere: along the
+    prior's best- and least-known directions (absolute size against standard deviations),
+    against its correlation (the diagonal alone against the whole P̌), and at lengths
+    between tol and √tol (the distance against its square; tol ≠ 1). No step has a length
+    within 10 % of tol, so ``<`` and ``<=`` agree. Last, the steps of the reference IEKF on
+    the wide first beacon update.
+    """
+    cases = beacon_update_cases()
+    rng = np.random.default_rng(23)
+    out = []
+    for k in (1, 2, 5, 7):
+        x_op, P = cases[k][0], cases[k][1]
+        _, vectors = np.linalg.eigh(P)               # eigenvalues ascending
+        std = np.sqrt(np.diag(P))
+        _, corr_vectors = np.linalg.eigh(P / np.outer(std, std))
+        random_direction = rng.standard_normal(len(x_op))
+        steps = [
+            (_scaled(vectors[:, -1], P, 0.3), 0.5, "along the direction the prior knows least"),
+            (_scaled(vectors[:, 0], P, 0.8), 0.5, "along the direction the prior knows best"),
+            (_scaled(std * corr_vectors[:, 0], P, 0.8), 0.5, "against the prior's correlations"),
+            (_scaled(std * corr_vectors[:, -1], P, 0.3), 0.5, "along the prior's correlations"),
+            (_scaled(random_direction, P, 0.4), 0.25, "of moderate length"),
+            (_scaled(random_direction, P, 3.0), 4.0, "of moderate length"),
+            (_scaled(random_direction, P, 1e-3), 1e-2, "of small length"),
+        ]
+        out += [(x_op + step, x_op, P, tol, what) for step, tol, what in steps]
+    x_check, P_check, y, g, G, R, residual = cases[0]
+    x_op = x_check
+    for _ in range(5):
+        x_next = _iekf_step_reference(x_check, P_check, x_op, y, g, G, R, residual)[0]
+        out.append((x_next, x_op, P_check, 1e-2, "of the reference IEKF on the first beacon update"))
+        x_op = x_next
+    return tuple(out)
+
+
+def _convergence_mistakes(x_next, x_op, P, tol):
+    """Verdicts of plausible wrong tests, each with the hint that names the mistake."""
+    step = np.asarray(x_next, dtype=float) - np.asarray(x_op, dtype=float)
+    std = np.sqrt(np.diag(P))
+    d = _mahalanobis(step, P)
+    in_P = float(np.sqrt(step @ P @ step))
+    units = ("your test measures the step in the state's own units (metres, m/s, rad mixed), whatever the "
+             "prior knows about each component: measure it in prior standard deviations, as the Mahalanobis "
+             "distance under P̌ (lecture 02 §1)")
+    diagonal = ("your test divides each component by its standard deviation but ignores the correlations of "
+                "P̌: a step against the correlation is far less likely than its components say; use the whole "
+                "P̌ (its inverse, P̌⁻¹)")
+    weighted = ("your test weighs the step by P̌ instead of its inverse: a step in a direction the prior knows "
+                "well must count more, not less (d² = Δxᵀ P̌⁻¹ Δx)")
+    return [
+        (np.max(np.abs(step)) <= tol, units),
+        (np.linalg.norm(step) <= tol, units),
+        (in_P <= tol, weighted),
+        (in_P**2 <= tol, weighted),
+        (d**2 <= tol, "your test compares the squared distance d² with tol; tol is a number of standard "
+                      "deviations: compare d with tol (or d² with tol²)"),
+        (np.max(np.abs(step) / std) <= tol, diagonal),
+        (np.linalg.norm(step / std) <= tol, diagonal),
+        (np.max(np.abs(step) / np.diag(P)) <= tol, "your test divides by the variances (σ², the diagonal of P̌), "
+                                                   "not by standard deviations, and ignores the correlations: "
+                                                   "use the whole P̌⁻¹"),
+        (d > tol, "your verdict is inverted: True means the step is short enough to stop"),
+    ]
+
+
+@check
+def check_iekf_converged(iekf_converged):
+    """The learner's ``iekf_converged(x_next, x_op, P_check, tol)`` → bool, the challenge of chapter 06.
+
+    Exact verdicts: no case has a step length within 10 % of tol (so round-off, a solve or
+    an inverse, ``<`` or ``<=`` cannot change a verdict), and every wrong test in the
+    catalogue gives a wrong verdict on at least one case.
+    """
+    results = []
+    for k, (x_next, x_op, P, tol, what) in enumerate(convergence_cases()):
+        value = call(iekf_converged, x_next, x_op, P, tol)
+        if np.ndim(value) >= 1:
+            raise CheckFailed("iekf_converged returned one verdict per state component: return a single "
+                              "True or False for the whole step")
+        if isinstance(value, np.ndarray) and value.shape == () and value.dtype == bool:
+            value = bool(value)                # a 0-d boolean array is a verdict too
+        if not isinstance(value, (bool, np.bool_)):
+            raise CheckFailed(f"iekf_converged should return True or False (whether to stop), got "
+                              f"{type_name(value)}; compare the step's length with tol")
+        expected = _mahalanobis(x_next - x_op, P) <= tol
+        mistakes = [(np.asarray(float(v)), why) for v, why in _convergence_mistakes(x_next, x_op, P, tol)]
+        results.append((np.asarray(float(value)), float(expected),
+                        f"the verdict ({bool(value)}) for step {k + 1}, a step {what} (n = {len(x_op)}, "
+                        f"tol = {tol:g})", lambda mistakes=mistakes: mistakes))
+    _judge(results, close=lambda a, b: bool(a == b),
+           hint="stop when the Mahalanobis length of the step under the prior, √(Δxᵀ P̌⁻¹ Δx), is at most "
+                "tol")

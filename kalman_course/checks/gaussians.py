@@ -103,17 +103,20 @@ def _conditional_cases():
                                     "μ_x + Σ_xy Σ_yy⁻¹ (y − μ_y)"),
             (mu_x, "the mean did not move: add Σ_xy Σ_yy⁻¹ (y − μ_y)"),
             (mu_x + K @ y, "the mean of y is missing from the innovation: subtract μ_y from y"),
-            (mu_x + K_diag @ innovation, "only the diagonal of Σ_yy (the variances) was used: "
-                                         "y's components are correlated, invert the whole "
-                                         "matrix (np.linalg.solve(Sigma_yy, ...))"),
+            (mu_x + K_diag @ innovation, "only the diagonal of Σ_yy (the variances) was used, "
+                                         "as in the one-dimensional formula: the components of "
+                                         "y are correlated (Σ_yy is not diagonal), so weigh "
+                                         "the innovation by the inverse of the whole matrix "
+                                         "Σ_yy, not by each variance alone"),
         ]
         cov_mistakes = [
             (Sxx + K @ Sxy.T, "sign: observing y removes uncertainty, Σ_xx − Σ_xy Σ_yy⁻¹ Σ_yx"),
             (Sxx, "the covariance did not shrink: subtract Σ_xy Σ_yy⁻¹ Σ_yx (the Schur complement)"),
             (Sxx - Sxy @ Sxy.T, "Σ_yy⁻¹ is missing between Σ_xy and Σ_yx"),
             (Sxx - Sxy @ Syy @ Sxy.T, "Σ_yy stands where its inverse belongs: Σ_xy Σ_yy⁻¹ Σ_yx"),
-            (Sxx - K_diag @ Sxy.T, "only the diagonal of Σ_yy (the variances) was used: y's "
-                                   "components are correlated, invert the whole matrix"),
+            (Sxx - K_diag @ Sxy.T, "only the diagonal of Σ_yy (the variances) was used, as in "
+                                   "the one-dimensional formula: y's components are correlated, "
+                                   "invert the whole matrix Σ_yy"),
         ]
         if n == m:
             mean_mistakes += [
@@ -131,8 +134,10 @@ def _conditional_cases():
                 (Sxx - Sxy.T @ np.linalg.solve(Syy, Sxy),
                  "Σ_xy and Σ_yx are swapped (transposed): Σ_xx − Σ_xy Σ_yy⁻¹ Σ_xyᵀ"),
                 (Syy - Sxy.T @ np.linalg.solve(Sxx, Sxy),
-                 "that is the covariance of y given x; the covariance of x given y is "
-                 "Σ_xx − Σ_xy Σ_yy⁻¹ Σ_yx"),
+                 "that is the covariance of y given x (the Schur complement of Σ_xx, what is "
+                 "left of y's uncertainty once x is known). Here y is observed and x is "
+                 "unknown: start from Σ_xx and take the Schur complement of Σ_yy (lecture 02 "
+                 "§3 and §4)"),
                 (Sxx - np.linalg.solve(Syy, Sxy.T) @ Sxy,
                  "the factors are in the wrong order (matrix products do not commute): "
                  "Σ_xy Σ_yy⁻¹ Σ_yx"),
@@ -221,6 +226,8 @@ def _linear_cases():
                               "deviation)"),
             (GSG + np.linalg.inv(R), "add the noise covariance R itself, not R⁻¹"),
             (GSG - R, "sign: independent noise adds its covariance, + R"),
+            (R, "Σ_yy is only the noise: the uncertainty of x, carried through the map G, adds "
+                "to it"),
         ]
         if not np.allclose(R, np.diag(np.diag(R))):
             syy_mistakes += [
@@ -245,12 +252,16 @@ def _linear_cases():
             syy_mistakes += [
                 (G.T @ Sxx @ G + R, "G and Gᵀ are swapped (transposed): Σ_yy = G Σ_xx Gᵀ + R"),
                 (G @ Sxx @ G + R, "the transpose of the last G is missing: G Σ_xx Gᵀ + R"),
-                (GSG + G @ R @ G.T, "the noise is added after the map: + R, not G R Gᵀ"),
+                (GSG + G @ R @ G.T, "the noise was pushed through the map: in y = G x + n the "
+                                    "noise is added after the map, in the measurement's own "
+                                    "axes and units (R is m × m), so R is added as it is, "
+                                    "not as G R Gᵀ"),
                 (Sxx + R, "Σ_yy = G Σ_xx Gᵀ + R: the map G must appear"),
             ]
             sxy_mistakes += [
-                (G @ Sxx, "that is Σ_yx = G Σ_xx (its transpose); Σ_xy = E[(x − μ_x)(y − μ_y)ᵀ] "
-                          "= Σ_xx Gᵀ"),
+                (G @ Sxx, "that is Σ_yx = G Σ_xx, the transpose of Σ_xy: Σ_xy = "
+                          "E[(x − μ_x)(y − μ_y)ᵀ] has one row per component of x and one column "
+                          "per component of y, shape (n, m)"),
                 (G.T @ Sxx, "Σ_xy = Σ_xx Gᵀ: Σ_xx comes first (Gᵀ Σ_xx is another matrix)"),
                 (Sxx @ G.T + R, "the noise is independent of x: it adds nothing to Σ_xy = Σ_xx Gᵀ"),
             ]
@@ -263,7 +274,12 @@ def _linear_cases():
 
 
 def _close(a, b) -> bool:
-    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    """True when ``a`` and ``b`` are numeric arrays of one shape and equal to the default
+    tolerance; False for anything that is not numeric (compared later, with a message)."""
+    try:
+        a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    except (TypeError, ValueError):
+        return False
     return a.shape == b.shape and np.allclose(a, b, rtol=1e-7, atol=1e-9)
 
 
@@ -278,6 +294,12 @@ def check_linear_map_moments(linear_map_moments):
         except CheckFailed as exc:
             raise _shape_hint(exc, sizes, _LINEAR_SHAPE_HINT) from None
         got_mu, got_syy, got_sxy = _tuple(result, 3, "(mu_y, Sigma_yy, Sigma_xy)", "linear_map_moments")
+        mu_x, Sxx = args[0], args[1]
+        if _close(got_mu, mu_x) and _close(got_syy, Sxx):     # the exercise's placeholder
+            raise CheckFailed(f"you returned the moments of x itself ({sizes}), as if the sensor read "
+                              "x directly and without noise: y = G x + n has m components; push the "
+                              "mean and the covariance of x through the map G, add the covariance "
+                              "of the noise, and give the cross-covariance of x and y (lecture 02 §5)")
         try:
             if _close(got_syy, Sxy) and _close(got_sxy, Syy):
                 raise CheckFailed("Sigma_yy and Sigma_xy are swapped: the order is "
@@ -294,3 +316,83 @@ def check_linear_map_moments(linear_map_moments):
                               f"its transpose; Σ_xy = Σ_xx Gᵀ has shape (n, m) = ({n}, {m})")
         expect_close(arr, Sxy, f"Sigma_xy ({sizes})", mistakes=sxy_mistakes,
                      hint="Σ_xy = Σ_xx Gᵀ, shape (n, m)")
+
+
+# ---------------------------------------------------------------------------------------
+# fusing two estimates (optional challenge)
+# ---------------------------------------------------------------------------------------
+
+@functools.cache
+def _fusion_cases():
+    """Each case: (args, mean, cov, cov mistakes, mean mistakes). Two 2-D estimates whose
+    ellipses point different ways, a 3-D pair with scales from 0.2 to 5, and a pair in which
+    one estimate is far less certain than the other (the fused one stays near the better).
+    No case is one-dimensional or diagonal: there the scalar formulas would be right."""
+    out = []
+    for n, seed, spread in ((2, 51, 1.0), (3, 52, 5.0), (2, 53, 30.0)):
+        rng = np.random.default_rng(seed)
+        covs = []
+        for scale in (1.0, spread):
+            A = rng.normal(size=(n, n))
+            D = np.diag(rng.uniform(0.2, 2.0, n))
+            covs.append(symmetrise(scale * D @ (A @ A.T + 0.3 * np.eye(n)) @ D))
+        Sa, Sb = covs
+        mu_a, mu_b = rng.normal(size=n), 3.0 * rng.normal(size=n)
+        mean, cov = gaussians.product(mu_a, Sa, mu_b, Sb)
+        K_swapped = np.linalg.solve(Sa + Sb, Sb).T              # Σ_b (Σ_a + Σ_b)⁻¹
+        elementwise = 1.0 / (1.0 / Sa + 1.0 / Sb)
+        cov_mistakes = [
+            (elementwise, "1 / Σ is not the inverse of a covariance matrix: the one-dimensional "
+                          "formula 1 / (1/σ_a² + 1/σ_b²) does not work element by element. "
+                          "Information (the inverse covariance, a matrix inverse) adds up, or "
+                          "use the conditioning you wrote above with G = I"),
+            (Sa + Sb, "covariances add for a sum of two independent variables, not when two "
+                      "estimates of the same x are fused: the fused covariance is smaller than "
+                      "both"),
+            (0.5 * (Sa + Sb), "an average of the covariances: the fused covariance is smaller "
+                              "than both, since each estimate adds information"),
+            (np.linalg.inv(Sa + Sb), "the inverse of the sum is not the sum of the inverses: "
+                                     "the inverses (the information) add up"),
+            (Sa, "the covariance did not shrink: the second estimate adds information"),
+            (symmetrise(Sa - K_swapped @ Sa),
+             "the weights are swapped: moving from estimate a towards b, the gain grows with a's "
+             "uncertainty, Σ_a (Σ_a + Σ_b)⁻¹ (b's gain, Σ_b (Σ_a + Σ_b)⁻¹, moves from b towards a)"),
+            (symmetrise(Sa @ Sb @ np.linalg.inv(Sa + Sb)),
+             "the factors are in the wrong order (matrix products do not commute): the gain "
+             "Σ_a (Σ_a + Σ_b)⁻¹ multiplies Σ_b from the left"),
+        ]
+        mean_mistakes = [
+            (elementwise @ (mu_a / np.diag(Sa) + mu_b / np.diag(Sb)),
+             "each mean was weighed by its variances alone, as in the one-dimensional formula "
+             "applied element by element: weigh it by the whole inverse covariance"),
+            (cov @ (mu_a / np.diag(Sa) + mu_b / np.diag(Sb)),
+             "each mean was weighed by its variances alone (element by element): weigh it by "
+             "the whole inverse covariance, the information matrix"),
+            (0.5 * (mu_a + mu_b), "the plain average ignores how certain each estimate is: the "
+                                  "fused mean lies nearer the more certain one"),
+            (mu_a + K_swapped @ (mu_b - mu_a), "the weights are swapped: the fused mean moves "
+                                               "towards the more certain estimate, not the "
+                                               "less certain one"),
+            (mu_a, "the mean did not move: the second estimate must pull it"),
+        ]
+        out.append(((mu_a, Sa, mu_b, Sb), mean, cov, cov_mistakes, mean_mistakes))
+    return out
+
+
+@check
+def check_gaussian_fusion(gaussian_fusion):
+    """The learner's ``gaussian_fusion(mu_a, Sigma_a, mu_b, Sigma_b)``: the normalised product
+    of two Gaussian densities of the same x, returned as (mean, cov)."""
+    for args, mean, cov, cov_mistakes, mean_mistakes in _fusion_cases():
+        n = len(mean)
+        result = call(gaussian_fusion, *args)
+        got_mean, got_cov = _tuple(result, 2, "(mean, cov)", "gaussian_fusion")
+        if np.ndim(got_mean) == 2 and np.ndim(got_cov) == 1:
+            raise CheckFailed("gaussian_fusion returned (cov, mean): the order is (mean, cov)")
+        expect_close(got_cov, cov, f"fused covariance (n = {n})", mistakes=cov_mistakes,
+                     hint="the fused belief is the normalised product of the two densities; "
+                          "lecture 02 §6 shows it is conditioning with G = I")
+        expect_symmetric(got_cov, f"fused covariance (n = {n})")
+        expect_close(got_mean, mean, f"fused mean (n = {n})", mistakes=mean_mistakes,
+                     hint="the fused mean is the conditional mean of x given that the second "
+                          "estimate observed it: lecture 02 §6 with G = I")

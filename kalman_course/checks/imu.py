@@ -1,4 +1,5 @@
-"""Checks for chapter 07: the three midpoint steps of IMU mechanisation, and a whole run.
+"""Checks for chapter 07: the three midpoint steps of IMU mechanisation, a whole run, and the
+optional challenge's levelling (the attitude a resting accelerometer gives).
 
 Each step is compared on several cases with the closed form of the midpoint rule: synthetic
 motion (a constant rate, a resting IMU, constant acceleration), synthetic cases whose rates,
@@ -7,7 +8,9 @@ transposed or left-multiplied rotation or a T² change the value), rates from ex
 down to 1e-12 rad/s, and KITTI samples with made-up biases. The whole run is compared with
 :func:`kalman_course.core.imu.dead_reckon` on synthetic motion (constant dt, whose truth the
 midpoint rule reproduces exactly) and on a KITTI slice (irregular dt, not at the start of
-the data).
+the data); a run whose rows never leave the initial state is named as the loop's placeholder.
+Levelling is judged by what defines it, R f/|f| = up (any heading), on tilts from 0 to 150°,
+a reading longer than g and KITTI means.
 
 When a result is wrong, the check looks for the plausible mistake that reproduces the
 learner's value on *every* case (a wrong formula is consistent; a coincidence on one case is
@@ -21,6 +24,7 @@ import functools
 import numpy as np
 
 from kalman_course.core import so3
+from kalman_course.core.angles import wrap_angle
 from kalman_course.checks.harness import CheckFailed, as_array, call, check, expect_shape
 from kalman_course.data import imu_trajectory, load_kitti
 from kalman_course.core.imu import NavState, dead_reckon
@@ -346,6 +350,12 @@ def _acc(c, R0=None, R1=None, bias=None):
     return 0.5 * (R0 @ (f0 - b) + R1 @ (f1 - b))
 
 
+def _mid_step_attitude(c):
+    """The attitude half-way between R₀ and R₁ of a velocity case: R₀ Exp(½ Log(R₀ᵀ R₁))."""
+    R0, R1 = c["args"][1], c["args"][2]
+    return R0 @ so3.exp(0.5 * so3.log(R0.T @ R1, check=False))
+
+
 def _v(c, acc, gravity=None, T=None, v0=None):
     v, R0, R1, f0, f1, b_a, g, dt = c["args"]
     g = g if gravity is None else gravity
@@ -386,6 +396,9 @@ _VELOCITY_MISTAKES = [
     (lambda c: _v(c, 0.5 * (c["args"][1] + c["args"][2]) @ (0.5 * (c["args"][3] + c["args"][4]) - c["args"][5])),
      "rotate each reading with the attitude at its own time, then average: ½(R₀(f₀ − b_a) + R₁(f₁ − b_a)), "
      "not the mean attitude times the mean reading"),
+    (lambda c: _v(c, _mid_step_attitude(c) @ (0.5 * (c["args"][3] + c["args"][4]) - c["args"][5])),
+     "the midpoint rule rotates each reading with the attitude at its own time, R₀ for f₀ and R₁ for f₁, "
+     "then averages; one mid-step attitude for the mean reading is another (not the lecture's) rule"),
     (lambda c: _v(c, _acc(c) + 0.5 * c["args"][2] @ c["args"][5]),
      "subtract the accelerometer bias from each reading, R₀(f₀ − b_a) and R₁(f₁ − b_a), not from one only"),
     (lambda c: _v(c, _acc(c) + 0.5 * c["args"][1] @ c["args"][5]),
@@ -413,6 +426,9 @@ _VELOCITY_MISTAKES = [
      "midpoint rule: average the accelerations at both ends of the step, ½(a₀ + a₁), not the end one only"),
     (lambda c: _v(c, 2.0 * _acc(c)),
      "midpoint rule: the mean acceleration is half the sum, ½(R₀(f₀ − b_a) + R₁(f₁ − b_a))"),
+    (lambda c: _v(c, 2.0 * _acc(c), gravity=2.0 * c["args"][6]),
+     "midpoint rule: the mean of the two accelerations is half their sum, ½(a₀ + a₁) (gravity "
+     "included, it counts once)"),
     (lambda c: _v(c, _acc(c), T=c["args"][7] ** 2),
      "the velocity changes by a T, with T, not T²: v_next = v + (½(a₀ + a₁) + g) T"),
     (lambda c: _v(c, _acc(c), T=1.0),
@@ -453,8 +469,8 @@ _POSITION_MISTAKES = [
     (lambda c: c["args"][0] + 0.25 * (c["args"][1] + c["args"][2]) * c["args"][3],
      "the ½ of the mean velocity is applied once: p_next = p + ½(v₀ + v₁) T"),
     (lambda c: c["args"][0] + c["args"][1] * c["args"][3] + 0.5 * (c["args"][2] - c["args"][1]) * c["args"][3] ** 2,
-     "p + v₀T + ½aT² needs the acceleration a = (v₁ − v₀)/T, not the velocity change v₁ − v₀: "
-     "this gives p + v₀T + ½(v₁ − v₀)T = p + ½(v₀ + v₁) T"),
+     "units: ½(v₁ − v₀) T² is in m·s, not m. p + v₀T + ½aT² needs the acceleration a = (v₁ − v₀)/T, "
+     "not the velocity change v₁ − v₀: this gives p + v₀T + ½(v₁ − v₀)T = p + ½(v₀ + v₁) T"),
     (lambda c: c["args"][0] + 0.5 * (c["args"][2] - c["args"][1]) * c["args"][3],
      "sign: the mean velocity is ½(v₀ + v₁), a sum, not a difference"),
     (lambda c: c["args"][0] + 0.5 * (c["args"][1] - c["args"][2]) * c["args"][3],
@@ -611,6 +627,12 @@ def _diagnose_run(result, scenario):
             and np.allclose(R[0], state.rotation)):
         raise CheckFailed(f"the first row on {name} is not the initial state. Hint: row 0 of positions, "
                           "velocities and rotations is the state handed in (at imu.t[start])")
+    frozen = [bool(np.allclose(x, x[0], rtol=0.0, atol=tol)) for x, tol in zip(result, RUN_ATOL)]
+    if all(frozen):
+        raise CheckFailed(f"on {name} every row equals the initial state: the loop makes no step (is the "
+                          "placeholder still there?). Hint: each row i is one mechanisation step from row i − 1 "
+                          "with the readings at k − 1 and k, made by your attitude_step, velocity_step and "
+                          "position_step")
     for flags, why in _RUN_MISTAKES:
         flags = dict(flags, bias=g) if flags.get("bias") == "g" else flags
         try:
@@ -625,6 +647,10 @@ def _diagnose_run(result, scenario):
     if all(np.allclose(x[:-1], y[:-1], rtol=0.0, atol=tol) for x, y, tol in zip(result, ref, RUN_ATOL)):
         raise CheckFailed(f"the last state on {name} is wrong. Hint: the loop fills rows 1 .. n−1: "
                           "for i in range(1, n) (did it stop one step early?)")
+    for still, what, step in zip(frozen, ("positions", "velocities"), ("position_step", "velocity_step")):
+        if still:
+            raise CheckFailed(f"the {what} on {name} never change from the initial state. Hint: every step "
+                              f"must fill row i with {step}, from row i − 1")
 
 
 @check(uses=("attitude_step", "velocity_step", "position_step"))
@@ -646,8 +672,10 @@ def check_mechanisation_run(mechanise):
         _diagnose_run(result, scenario)
         for x, what in zip(result, ("positions", "velocities", "rotations")):
             if not np.all(np.isfinite(x)):
-                raise CheckFailed(f"{what} on {name} contain NaN or inf. Hint: every row 1 .. n−1 is "
-                                  "filled by one step from the row before it")
+                raise CheckFailed(f"{what} on {name} contain NaN or inf. Hint: the arrays start as NaN, so a "
+                                  "row used before it is filled turns into NaN: within a step, a function that "
+                                  "needs the new attitude or velocity must come after the step that computes "
+                                  "it; every row 1 .. n−1 is filled by one step from the row before it")
         for x, y, what, tol in zip(result, ref, ("positions", "velocities", "rotations"), RUN_ATOL):
             if not np.allclose(x, y, rtol=0.0, atol=tol):
                 k = int(np.argmax(np.abs(x - y).reshape(n, -1).max(axis=1) > tol))
@@ -672,3 +700,131 @@ def _run_arrays(result, n, name):
                               f"start .. stop−1 (n = {n})")
         arrays.append(arr)
     return tuple(arrays)
+
+
+# ----------------------------------------------------------------------------------------
+# Challenge: levelling (the attitude a resting accelerometer gives)
+# ----------------------------------------------------------------------------------------
+
+#: The navigation frame's up (z up, as KITTI).
+UP = np.array([0.0, 0.0, 1.0])
+
+#: R f/|f| against UP, absolute on entries: an atan2 construction, Euler angles, a quaternion or
+#: scipy agree with UP to ~1e-15; arccos of the cosine loses up to ~1e-16/θ, 1e-10 on the
+#: "nearly level" case (θ = 1e-6); every listed mistake is off by ≥ 0.05 rad on some case.
+LEVEL_ATOL = 1e-9
+
+_LEVEL_NAN = ("when the IMU is level, f is parallel to up and the axis f × up is zero: normalising it "
+              "divides 0 by 0. A level IMU needs no rotation: return the identity there")
+_LEVEL_NORMALISE = ("arccos of a number outside [−1, 1] is NaN: the cosine of the tilt is the dot product "
+                    "of UNIT vectors, f/|f| · up (|f| ≈ 9.81 m/s²)")
+
+
+def _tilt(u, target=UP):
+    """The angle (rad) between unit vectors ``u`` and ``target``, accurate at 0 and π."""
+    return float(np.arctan2(np.linalg.norm(np.cross(u, target)), u @ target))
+
+
+def _fold(angle):
+    """The angle between two directions that differ by a turn of ``angle`` in one plane."""
+    return float(abs(wrap_angle(angle)))
+
+
+@functools.lru_cache(maxsize=None)
+def _level_cases():
+    """(name, f, unit f, tilt) of the levelling check: tilts from 0 to 150°, |f| ≠ g, KITTI means."""
+    g = 9.8092
+    raw = []
+    for name, tilt, heading, scale in (("tilted 17°, heading 40°", np.radians(17.0), np.radians(40.0), 1.0),
+                                       ("tilted 70°, heading −120°", np.radians(70.0), np.radians(-120.0), 1.0),
+                                       ("mounted upside down, tilted 150°", np.radians(150.0), 0.5, 1.0),
+                                       ("nearly level (tilt 1e-6 rad)", 1e-6, 2.0, 1.0),
+                                       ("accelerating: |f| = 1.08 g, tilted 8°", np.radians(8.0), -0.7, 1.08)):
+        # a true attitude: heading about up, then a tilt about a horizontal axis
+        axis = np.array([np.cos(heading + 1.0), np.sin(heading + 1.0), 0.0])
+        R_true = so3.exp(tilt * axis) @ so3.exp(heading * UP)
+        raw.append((name, scale * R_true.T @ (g * UP)))         # a resting IMU reads R_trueᵀ (−g)
+    raw.append(("level (f straight up)", np.array([0.0, 0.0, g])))
+    ex = load_kitti("cruise")
+    for k in (200, 2500):  # KITTI's readings averaged over 1 s: real tilt, noise and motion
+        raw.append((f"KITTI, mean of samples {k}..{k + 99}", ex.imu.specific_force[k:k + 100].mean(axis=0)))
+    cases = []
+    for name, f in raw:
+        u = f / np.linalg.norm(f)
+        cases.append(dict(name=name, f=f, u=u, tilt=_tilt(u)))
+    return tuple(cases)
+
+
+def _turned(R, c):
+    """R applied to the measured direction f/|f| of a case: UP when R levels the IMU."""
+    return R @ c["u"]
+
+
+_LEVEL_MISTAKES = [
+    (lambda R, c: np.allclose(R, np.eye(3), atol=LEVEL_ATOL),
+     "R is the identity: that assumes the IMU is level. The accelerometer tells the tilt: find the "
+     "rotation R_nb that turns the measured direction f/|f| onto the navigation frame's up"),
+    (lambda R, c: np.allclose(_turned(R, c), -UP, atol=LEVEL_ATOL),
+     "your R turns f onto DOWN. At rest the accelerometer reads the specific force, the push that holds "
+     "the IMU against gravity: it points up (f = −Rᵀg), so R f/|f| = (0, 0, 1)"),
+    (lambda R, c: np.allclose(R.T @ c["u"], UP, atol=LEVEL_ATOL),
+     "your R is transposed: R = R_nb maps body coordinates to navigation ones, so R applied to the "
+     "body-frame f/|f| gives up, R f/|f| = (0, 0, 1); yours maps up back onto f (R_bn)"),
+    (lambda R, c: np.isclose(_tilt(_turned(R, c)), abs(c["tilt"] - np.arcsin(np.sin(c["tilt"]))), atol=1e-7),
+     "quadrant: arcsin(|f × up| / |f|) cannot tell a tilt θ from 180° − θ (an IMU upside down); take the "
+     "angle with atan2(|u × up|, u · up) or arccos(u · up)"),
+    (lambda R, c: np.isclose(_tilt(_turned(R, c)), abs(c["tilt"] - np.sin(c["tilt"])), atol=1e-7),
+     "the cross product u × up has length sin θ, not θ: the rotation vector is the tilt θ times the UNIT "
+     "axis (u × up)/|u × up|"),
+    (lambda R, c: np.isclose(_tilt(_turned(R, c)), abs(c["tilt"] - c["tilt"] * np.sin(c["tilt"])), atol=1e-7),
+     "the axis u × up has length sin θ: normalise it before multiplying by the tilt θ"),
+    (lambda R, c: np.isclose(_tilt(_turned(R, c)), _fold(np.degrees(c["tilt"]) - c["tilt"]), atol=1e-7),
+     "so3.Exp takes radians: do not convert the tilt to degrees"),
+]
+
+
+@check
+def check_level_attitude(level_attitude):
+    """``level_attitude(f)`` returns an attitude R_nb (3, 3) with R f/|f| = (0, 0, 1), any heading."""
+    cases = _level_cases()
+    turned = []
+    rotations = []
+    for c in cases:
+        level = c["tilt"] == 0.0
+        what = f"R on the case '{c['name']}'"
+        try:
+            got = _call_step(level_attitude, c["f"], hint=f"on the case '{c['name']}', {_LEVEL_NAN}" if level else "")
+        except CheckFailed as exc:
+            # a NaN handed on (to so3.Exp, say) raises before we see it: the same hint as for a NaN result
+            if not level and "nan" in str(exc).lower():
+                raise CheckFailed(f"{exc} (on the case '{c['name']}'). Hint: {_LEVEL_NORMALISE}") from None
+            raise
+        try:
+            R = expect_shape(got, (3, 3), what)
+        except CheckFailed as exc:
+            if "NaN" in str(exc):
+                raise CheckFailed(f"{exc}. Hint: {_LEVEL_NAN if level else _LEVEL_NORMALISE}") from None
+            raise
+        if not so3.is_rotation(R, tol=1e-9):
+            err = np.max(np.abs(R.T @ R - np.eye(3)))
+            raise CheckFailed(f"{what} is not a rotation matrix (|RᵀR − I| = {err:.2g}). Hint: build it as "
+                              "so3.Exp of a rotation vector: the tilt angle (rad) times a UNIT axis")
+        rotations.append(R)
+        turned.append(_turned(R, c))
+    failing = [k for k, v in enumerate(turned) if not np.allclose(v, UP, rtol=0.0, atol=LEVEL_ATOL)]
+    if not failing:
+        return
+    for fits, why in _LEVEL_MISTAKES:
+        if all(bool(fits(R, c)) for R, c in zip(rotations, cases)):
+            raise CheckFailed(f"R does not level the IMU. Hint: {why}")
+    beyond_90 = [k for k, c in enumerate(cases) if c["tilt"] > 0.5 * np.pi]
+    if failing == beyond_90:
+        raise CheckFailed("R levels the IMU up to 90° of tilt but not beyond (case "
+                          f"'{cases[failing[0]]['name']}'). Hint: quadrant: arcsin or arctan(y/x) cannot tell a "
+                          "tilt θ from 180° − θ; use np.arctan2 with both arguments, or arccos of the cosine")
+    k = failing[0]
+    off = np.degrees(_tilt(turned[k]))
+    raise CheckFailed(f"on the case '{cases[k]['name']}' R f/|f| is {off:.3g}° away from up (0, 0, 1). Hint: "
+                      "R = R_nb must turn the direction the accelerometer measures (body frame) onto the "
+                      "navigation frame's up; one such R turns about the axis u × up by the angle between "
+                      "u = f/|f| and up")

@@ -1,7 +1,8 @@
 """Chapter 01 (Bayes' rule, the histogram filter): plausible mistakes in the exercise's functions.
 
 The solution's cells: ``likelihood`` (sensor_likelihood), ``update`` (histogram_update),
-``predict`` (histogram_predict) and ``run`` (run_histogram_filter, which calls the other three).
+``predict`` (histogram_predict), ``run`` (run_histogram_filter, which calls the other three)
+and ``challenge`` (circular_motion_model, the optional challenge).
 """
 
 from mutation_harness import Edit, Equivalent
@@ -12,21 +13,26 @@ _LIK = "return np.where(world == z, p_correct, 1.0 - p_correct)"
 _UPD = "posterior = unnormalised / unnormalised.sum()"
 _PRED = "return transition @ belief"
 _RUN = "belief = histogram_update(belief, likelihood)"
-_LOOP = ("for k, z in enumerate(measurements):\n"
-         "        if k > 0:\n"
+# the recursion's fix region: the whole step between the likelihood and the append
+_STEP = ("if k > 0:\n"
          "            belief = histogram_predict(belief, transition)\n"
+         "        belief = histogram_update(belief, likelihood)")
+_STUB_END = ("        # STUB\n"
+             "        # # fix this: the robot moves between two readings, and each step must start from\n"
+             "        # # what the earlier readings taught\n"
+             "        # belief = histogram_update(belief0, likelihood)\n"
+             "        # END SOLUTION\n")
+_LOOP = ("for k, z in enumerate(measurements):\n"
          "        likelihood = sensor_likelihood(world, z, p_correct)\n"
          "        # BEGIN SOLUTION histogram_filter\n"
-         "        belief = histogram_update(belief, likelihood)\n"
-         "        # STUB\n"
-         "        # belief = histogram_update(belief0, likelihood)  # fix this\n"
-         "        # END SOLUTION\n"
+         "        " + _STEP + "\n" + _STUB_END +
          "        beliefs.append(belief)")
-_STORE = ("belief = histogram_update(belief, likelihood)\n"
-          "        # STUB\n"
-          "        # belief = histogram_update(belief0, likelihood)  # fix this\n"
-          "        # END SOLUTION\n"
-          "        beliefs.append(belief)")
+_STORE = _RUN + "\n" + _STUB_END + "        beliefs.append(belief)"
+# the update's fix region: the whole of Bayes' rule
+_BAYES = "unnormalised = likelihood * belief\n    " + _UPD
+# the challenge's fix region: the inner loop over the cells
+_RING = ("for j in range(n):                              # from cell j ...\n"
+         "            transition[(j + offset) % n, j] += prob     # ... to cell j + offset, round the ring")
 
 MUTANTS = [
     # --- door_likelihood: sensor_likelihood(world, z, p_correct) --------------------------
@@ -83,7 +89,7 @@ MUTANTS = [
     Edit("histogram_predict", _PRED, "return transition.T @ belief",
          keyword="transposed", mistake="transition.T @ belief"),
     Edit("histogram_predict", _PRED, "return belief @ transition",
-         keyword="transposed", mistake="belief @ transition"),
+         keyword="transposed", mistake="belief @ transition, the row-vector convention (the stub)"),
     Edit("histogram_predict", _PRED, "return (transition * belief).sum(axis=0)",
          keyword="wrong axis", mistake="element-wise product summed over i (axis 0)"),
     Edit("histogram_predict", _PRED, "return (transition * belief[:, None]).sum(axis=0)",
@@ -113,7 +119,8 @@ MUTANTS = [
 
     # --- histogram_filter: run_histogram_filter(...) -------------------------------------
     Edit("histogram_filter", _RUN, "belief = histogram_update(belief0, likelihood)",
-         keyword="restarts from belief0", mistake="each step restarts from belief0 (the stub)"),
+         keyword="restarts from belief0",
+         mistake="each update starts from belief0 (the prediction computed, then dropped)"),
     Edit("histogram_filter", "belief = histogram_predict(belief, transition)",
          "belief = histogram_predict(belief0, transition)",
          keyword="from belief0", mistake="each step predicts from belief0"),
@@ -171,6 +178,76 @@ MUTANTS = [
          keyword="fix histogram_update first", mistake="an unnormalised histogram_update"),
     Edit("histogram_filter", _LIK, "return np.where(world == z, 1.0 - p_correct, p_correct)",
          cell="likelihood", keyword="fix sensor_likelihood first", mistake="a swapped sensor_likelihood"),
+
+    # --- the stubs of the exercise (issue 14), and the whole steps' plausible mistakes -----
+    Edit("door_likelihood", _LIK,
+         "p_door = np.where(world == 1, p_correct, 1.0 - p_correct)   # p(reading \"door\" | x = i)\n"
+         "    return p_door",
+         keyword="depend on z", mistake="p(reading 'door' | x) whatever was read (the stub)"),
+    Edit("door_likelihood", _LIK,
+         "p_door = np.where(world == 1, p_correct, 1.0 - p_correct)\n"
+         "    return p_door if z == 0 else 1.0 - p_door",
+         keyword="swapped", mistake="the stub's p_door, complemented for the wrong reading"),
+    Edit("histogram_update", _BAYES, "posterior = belief",
+         keyword="measurement was not used", mistake="the posterior is the prior (the stub)"),
+    Edit("histogram_update", _BAYES, "posterior = likelihood * belief",
+         keyword="evidence", mistake="likelihood × prior, never normalised"),
+    Edit("histogram_update", _BAYES, "posterior = likelihood / likelihood.sum()",
+         keyword="prior is missing", mistake="the normalised likelihood, prior forgotten"),
+    Edit("histogram_update", _BAYES, "posterior = likelihood * belief / likelihood.sum()",
+         keyword="evidence", mistake="normalised by the likelihood's sum instead of the evidence"),
+    Edit("histogram_update", _BAYES,
+         "posterior = (likelihood + belief) / (likelihood + belief).sum()",
+         keyword="does not add", mistake="prior and likelihood added, then normalised"),
+    Edit("histogram_filter", _STEP, "belief = histogram_update(belief0, likelihood)",
+         keyword="restarts from belief0", mistake="each reading on its own, from belief0 (the stub)"),
+    Edit("histogram_filter", _STEP,
+         "belief = histogram_update(belief, likelihood)\n"
+         "        belief = histogram_predict(belief, transition)",
+         keyword="after the next prediction", mistake="update, then predict, and the prediction stored"),
+    Edit("histogram_filter", _STEP,
+         "belief = histogram_predict(belief, transition)\n"
+         "        belief = histogram_update(belief, likelihood)",
+         keyword="before the first measurement", mistake="a prediction at every step, step 0 included"),
+    Edit("histogram_filter", _STEP, "belief = histogram_update(belief, likelihood)",
+         keyword="prediction step is missing", mistake="no motion between readings"),
+    Edit("histogram_filter", _STEP,
+         "if k > 0:\n"
+         "            belief = histogram_predict(belief0, transition)\n"
+         "        belief = histogram_update(belief, likelihood)",
+         keyword="from belief0", mistake="every prediction from belief0"),
+    Edit("histogram_filter", _STEP,
+         "prior = histogram_predict(belief, transition) if k > 0 else belief\n"
+         "        belief = histogram_update(belief, likelihood)",
+         keyword="prediction step is missing", mistake="the prediction stored under another name, unused"),
+
+    # --- corridor_motion_model (optional challenge): circular_motion_model(n, step_probs) --
+    Edit("corridor_motion_model", _RING, "transition += prob * np.eye(n, k=offset)",
+         keyword="lost at the end", mistake="shifted identities: no wrap-around, and backwards (the stub)"),
+    Edit("corridor_motion_model", _RING, "transition += prob * np.eye(n, k=-offset)",
+         keyword="lost at the end", mistake="shifted identities in the right direction, no wrap-around"),
+    Edit("corridor_motion_model", _RING,
+         "for j in range(n):\n"
+         "            if 0 <= j + offset < n:\n"
+         "                transition[j + offset, j] += prob",
+         keyword="circular", mistake="a straight corridor: steps past either end dropped"),
+    Edit("corridor_motion_model", _RING,
+         "for j in range(n):\n            transition[j, (j + offset) % n] += prob",
+         keyword="transposed", mistake="[from, to] instead of [to, from]"),
+    Edit("corridor_motion_model", _RING,
+         "for j in range(n):\n            transition[(j - offset) % n, j] += prob",
+         keyword="backwards", mistake="the offset subtracted"),
+    Edit("corridor_motion_model", _RING,
+         "transition += prob * np.roll(np.eye(n), offset, axis=1)",
+         keyword="transposed", mistake="the identity rolled along the wrong axis"),
+    Edit("corridor_motion_model", _RING,
+         "for j in range(n):\n            transition[(j + offset) % n, j] = prob",
+         keyword="add up", mistake="each probability written, not added (offsets equal modulo n)"),
+    Edit("corridor_motion_model", "for offset, prob in step_probs.items():",
+         "for offset, prob in enumerate(step_probs.values()):",
+         keyword="keys of step_probs", mistake="offsets taken as 0, 1, 2, ..."),
+    Edit("corridor_motion_model", "transition = np.zeros((n, n))", "transition = np.zeros((20, 20))",
+         keyword="shape", mistake="the notebook's 20 cells hard-coded"),
 ]
 
 EQUIVALENTS = [
@@ -213,6 +290,37 @@ EQUIVALENTS = [
          mistake="np.vstack instead of np.array"),
     Edit("histogram_filter", "return np.array(beliefs)", "return [list(b) for b in beliefs]",
          mistake="a list of lists"),
+    Edit("door_likelihood", _LIK,
+         "p_door = np.where(world == 1, p_correct, 1.0 - p_correct)   # p(reading \"door\" | x = i)\n"
+         "    return p_door if z == 1 else 1.0 - p_door",
+         mistake="the stub's p_door, complemented for a 'wall' reading"),
+    Edit("histogram_update", _BAYES,
+         "evidence = likelihood @ belief                  # p(z)\n"
+         "    posterior = likelihood * belief / evidence",
+         mistake="the evidence first, as a dot product"),
+    Edit("histogram_update", _BAYES,
+         "log_post = np.log(likelihood) + np.log(belief)\n"
+         "    posterior = np.exp(log_post - log_post.max())\n"
+         "    posterior = posterior / posterior.sum()",
+         mistake="the log domain, shifted by its maximum"),
+    Edit("histogram_filter", _STEP,
+         "prior = belief if k == 0 else histogram_predict(belief, transition)\n"
+         "        belief = histogram_update(prior, likelihood)",
+         mistake="the prior named, a conditional expression"),
+    Edit("histogram_filter", _STEP,
+         "if k:\n"
+         "            belief = histogram_predict(belief, transition)\n"
+         "        belief = histogram_update(belief, likelihood)",
+         mistake="if k: instead of if k > 0:"),
+    Edit("corridor_motion_model", _RING,
+         "transition += prob * np.roll(np.eye(n), offset, axis=0)",
+         mistake="the identity rolled down by the offset"),
+    Edit("corridor_motion_model", _RING,
+         "np.add.at(transition, ((np.arange(n) + offset) % n, np.arange(n)), prob)",
+         mistake="np.add.at with index arrays"),
+    Edit("corridor_motion_model", _RING,
+         "for i in range(n):\n            transition[i, (i - offset) % n] += prob",
+         mistake="a loop over the destination cells"),
 ]
 
 EQUIVALENT_MUTANTS = [

@@ -1,7 +1,8 @@
 """Chapter 02 (Gaussians): plausible mistakes in the exercise's functions.
 
 The solution's cells: ``conditional`` (gaussian_conditional, graded by conditional_mean and
-conditional_covariance) and ``linear`` (linear_map_moments).
+conditional_covariance), ``linear`` (linear_map_moments, one fix region for the whole step)
+and ``challenge`` (gaussian_fusion, the optional challenge).
 """
 
 from mutation_harness import Edit, Equivalent
@@ -15,11 +16,17 @@ _SYY = "Sigma_yy = G @ Sigma_xx @ G.T + R"
 _SXY = "Sigma_xy = Sigma_xx @ G.T"
 _MUY = "mu_y = G @ mu_x"
 _LRET = "return mu_y, Sigma_yy, Sigma_xy"
+# the linear map's fix region: the whole step
+_MOMENTS = _MUY + "\n    " + _SYY + "\n    " + _SXY
+# the challenge's fix region
+_FUSE = ("gain = Sigma_a @ np.linalg.inv(Sigma_a + Sigma_b)    # how far to move from a towards b\n"
+         "    mean = mu_a + gain @ (mu_b - mu_a)\n"
+         "    cov = Sigma_a - gain @ Sigma_a")
 
 MUTANTS = [
     # --- conditional_mean ---------------------------------------------------------------
     Edit("conditional_mean", _MEAN, "mean = mu_x + Sigma_xy @ (y - mu_y)",
-         keyword="inverse of Σ_yy", mistake="Σ_yy⁻¹ left out (the stub)"),
+         keyword="inverse of Σ_yy", mistake="Σ_yy⁻¹ left out"),
     Edit("conditional_mean", _MEAN, "mean = mu_x + Sigma_xy @ Sigma_yy @ (y - mu_y)",
          keyword="where its inverse belongs", mistake="Σ_yy instead of Σ_yy⁻¹"),
     Edit("conditional_mean", _MEAN, "mean = mu_x - Sigma_xy @ np.linalg.solve(Sigma_yy, y - mu_y)",
@@ -31,7 +38,8 @@ MUTANTS = [
     Edit("conditional_mean", _MEAN, "mean = mu_x + Sigma_xy @ np.linalg.solve(Sigma_yy, y)",
          keyword="mean of y is missing", mistake="innovation y instead of y − μ_y"),
     Edit("conditional_mean", _MEAN, "mean = mu_x + Sigma_xy @ ((y - mu_y) / np.diag(Sigma_yy))",
-         keyword="diagonal", mistake="the scalar formula σ_xy / σ_yy² per component (diagonal only)"),
+         keyword="diagonal",
+         mistake="the scalar formula σ_xy / σ_yy² per component, diagonal only (the stub)"),
     Edit("conditional_mean", _MEAN, "mean = mu_x + Sigma_xy.T @ np.linalg.solve(Sigma_yy, y - mu_y)",
          keyword="transposed", mistake="Σ_xy transposed in the gain"),
     Edit("conditional_mean", _MEAN, "mean = mu_x + Sigma_xy @ np.linalg.solve(Sigma_yy, y - mu_x)",
@@ -50,7 +58,7 @@ MUTANTS = [
     # --- conditional_covariance ---------------------------------------------------------
     Edit("conditional_covariance", _COV,
          "cov = Sigma_xx + Sigma_xy @ np.linalg.solve(Sigma_yy, Sigma_xy.T)",
-         keyword="sign", mistake="the Schur term added (the stub)"),
+         keyword="sign", mistake="the Schur term added"),
     Edit("conditional_covariance", _COV, "cov = Sigma_xx",
          keyword="did not shrink", mistake="the prior covariance returned"),
     Edit("conditional_covariance", _COV, "cov = Sigma_xx - Sigma_xy @ Sigma_xy.T",
@@ -71,7 +79,7 @@ MUTANTS = [
          keyword="wrong order", mistake="factors in the wrong order, Σ_yy⁻¹ Σ_yx Σ_xy"),
     Edit("conditional_covariance", _COV,
          "cov = Sigma_yy - Sigma_xy.T @ np.linalg.solve(Sigma_xx, Sigma_xy)",
-         keyword="y given x", mistake="the Schur complement of the other block, Σ_y|x"),
+         keyword="y given x", mistake="the Schur complement of the other block, Σ_y|x (the stub)"),
     Edit("conditional_covariance", _RET, "return mean, Sigma_xx",
          keyword="did not shrink", mistake="the prior covariance returned at the end"),
     Edit("conditional_covariance", _RET, "return cov, mean",
@@ -79,7 +87,7 @@ MUTANTS = [
 
     # --- linear_map_moments -------------------------------------------------------------
     Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T",
-         keyword="R is missing", mistake="R left out (the stub)"),
+         keyword="R is missing", mistake="R left out"),
     Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + R @ R",
          keyword="not R R", mistake="R R instead of R"),
     Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + np.sqrt(R)",
@@ -106,7 +114,7 @@ MUTANTS = [
     Edit("linear_map_moments", _SYY, "Sigma_yy = Sigma_xx + R",
          keyword="map G must appear", mistake="G left out of Σ_yy"),
     Edit("linear_map_moments", _SXY, "Sigma_xy = G @ Sigma_xx",
-         keyword="Σ_yx", mistake="Σ_yx = G Σ_xx instead of Σ_xy (the stub)"),
+         keyword="Σ_yx", mistake="Σ_yx = G Σ_xx instead of Σ_xy"),
     Edit("linear_map_moments", _SXY, "Sigma_xy = Sigma_xx",
          keyword="map G must appear", mistake="G left out of Σ_xy"),
     Edit("linear_map_moments", _SXY, "Sigma_xy = G.T @ Sigma_xx",
@@ -122,6 +130,54 @@ MUTANTS = [
          keyword="transposed", mistake="μ_x G, i.e. Gᵀ μ_x"),
     Edit("linear_map_moments", _LRET, "return mu_y, Sigma_xy, Sigma_yy",
          keyword="swapped", mistake="Σ_yy and Σ_xy returned in the wrong order"),
+    # the whole step of the linear map (issue 14): its placeholder and its plausible mistakes
+    Edit("linear_map_moments", _MOMENTS, "mu_y, Sigma_yy, Sigma_xy = mu_x, Sigma_xx, Sigma_xx",
+         keyword="moments of x itself", mistake="the moments of x returned as those of y (the stub)"),
+    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ (Sigma_xx + R) @ G.T",
+         keyword="after the map", mistake="the noise added to x before the map, y = G (x + n)"),
+    Edit("linear_map_moments", _MOMENTS,
+         "mu_y, Sigma_yy, Sigma_xy = G @ mu_x, R, Sigma_xx @ G.T",
+         keyword="only the noise", mistake="Σ_yy = R, the uncertainty of x forgotten"),
+    Edit("linear_map_moments", _MOMENTS,
+         "mu_y = G @ mu_x\n    Sigma_yy = G @ Sigma_xx @ G.T + R\n    Sigma_xy = G @ Sigma_xx",
+         keyword="Σ_yx", mistake="the whole step with Σ_yx for Σ_xy"),
+    Edit("linear_map_moments", _MOMENTS,
+         "mu_y, Sigma_yy, Sigma_xy = G @ mu_x, G @ Sigma_xx @ G.T, Sigma_xx @ G.T",
+         keyword="R is missing", mistake="a noise-free sensor"),
+
+    # --- gaussian_fusion (optional challenge) -------------------------------------------
+    Edit("gaussian_fusion", _FUSE,
+         "cov = 1.0 / (1.0 / Sigma_a + 1.0 / Sigma_b)\n"
+         "    mean = cov @ (mu_a / np.diag(Sigma_a) + mu_b / np.diag(Sigma_b))",
+         keyword="element by element", mistake="the 1-D formulas applied entry by entry (the stub)"),
+    Edit("gaussian_fusion", _FUSE,
+         "cov = np.linalg.inv(np.linalg.inv(Sigma_a) + np.linalg.inv(Sigma_b))\n"
+         "    mean = cov @ (mu_a / np.diag(Sigma_a) + mu_b / np.diag(Sigma_b))",
+         keyword="variances alone", mistake="the right covariance, the means weighed by variances only"),
+    Edit("gaussian_fusion", _FUSE, "cov = Sigma_a + Sigma_b\n    mean = (mu_a + mu_b) / 2",
+         keyword="smaller than both", mistake="covariances added as for a sum of variables"),
+    Edit("gaussian_fusion", _FUSE, "cov = (Sigma_a + Sigma_b) / 2\n    mean = (mu_a + mu_b) / 2",
+         keyword="average", mistake="both averaged"),
+    Edit("gaussian_fusion", _FUSE,
+         "cov = np.linalg.inv(Sigma_a + Sigma_b)\n    mean = mu_a + cov @ Sigma_a @ (mu_b - mu_a)",
+         keyword="sum of the inverses", mistake="the inverse of the sum"),
+    Edit("gaussian_fusion", "gain = Sigma_a @ np.linalg.inv(Sigma_a + Sigma_b)",
+         "gain = Sigma_b @ np.linalg.inv(Sigma_a + Sigma_b)",
+         keyword="swapped", mistake="the gain built with Σ_b (the weights swapped)"),
+    Edit("gaussian_fusion", "mean = mu_a + gain @ (mu_b - mu_a)",
+         "mean = mu_a + (np.eye(len(mu_a)) - gain) @ (mu_b - mu_a)",
+         keyword="swapped", mistake="the mean moved by I − K: towards the less certain estimate"),
+    Edit("gaussian_fusion", "mean = mu_a + gain @ (mu_b - mu_a)", "mean = (mu_a + mu_b) / 2",
+         keyword="plain average", mistake="the right covariance, an unweighted mean"),
+    Edit("gaussian_fusion", "mean = mu_a + gain @ (mu_b - mu_a)", "mean = mu_a",
+         keyword="did not move", mistake="the first estimate's mean kept"),
+    Edit("gaussian_fusion", "cov = Sigma_a - gain @ Sigma_a", "cov = Sigma_a",
+         keyword="did not shrink", mistake="the first estimate's covariance kept"),
+    Edit("gaussian_fusion", "cov = Sigma_a - gain @ Sigma_a",
+         "cov = Sigma_a @ Sigma_b @ np.linalg.inv(Sigma_a + Sigma_b)",
+         keyword="wrong order", mistake="Σ_a Σ_b (Σ_a + Σ_b)⁻¹, factors out of order"),
+    Edit("gaussian_fusion", "return mean, 0.5 * (cov + cov.T)", "return cov, mean",
+         keyword="order", mistake="(cov, mean) returned"),
 ]
 
 EQUIVALENTS = [
@@ -182,6 +238,39 @@ EQUIVALENTS = [
     Edit("linear_map_moments", _LRET, "return [mu_y, Sigma_yy, Sigma_xy]",
          mistake="a list instead of a tuple"),
     Edit("linear_map_moments", _MUY, "mu_y = np.dot(G, mu_x)", mistake="np.dot"),
+    Edit("linear_map_moments", _MOMENTS,
+         "T = np.vstack([np.eye(len(mu_x)), G])             # [x; G x]\n"
+         "    joint = T @ Sigma_xx @ T.T\n"
+         "    joint[len(mu_x):, len(mu_x):] += R\n"
+         "    mu_y = G @ mu_x\n"
+         "    Sigma_yy = joint[len(mu_x):, len(mu_x):]\n"
+         "    Sigma_xy = joint[:len(mu_x), len(mu_x):]",
+         mistake="the blocks of the joint covariance of [x; y], as in lecture 02 §5"),
+    Edit("linear_map_moments", _MOMENTS,
+         "mu_y = G @ mu_x\n    Sigma_xy = Sigma_xx @ G.T\n    Sigma_yy = G @ Sigma_xy + R",
+         mistake="Σ_yy from Σ_xy, as G Σ_xy + R"),
+    Edit("gaussian_fusion", _FUSE,
+         "mean, cov = gaussian_conditional(mu_a, mu_a, Sigma_a, Sigma_a, Sigma_a + Sigma_b, mu_b)",
+         mistake="conditioning with G = I: b is a reading of x with noise Σ_b"),
+    Edit("gaussian_fusion", _FUSE,
+         "mu_y, Sigma_yy, Sigma_xy = linear_map_moments(mu_a, Sigma_a, np.eye(len(mu_a)), Sigma_b)\n"
+         "    mean, cov = gaussian_conditional(mu_a, mu_y, Sigma_a, Sigma_xy, Sigma_yy, mu_b)",
+         mistake="the exercise's two functions chained, G = I"),
+    Edit("gaussian_fusion", _FUSE,
+         "info = np.linalg.inv(Sigma_a) + np.linalg.inv(Sigma_b)\n"
+         "    cov = np.linalg.inv(info)\n"
+         "    mean = cov @ (np.linalg.solve(Sigma_a, mu_a) + np.linalg.solve(Sigma_b, mu_b))",
+         mistake="the information form"),
+    Edit("gaussian_fusion", _FUSE,
+         "gain = np.linalg.solve(Sigma_a + Sigma_b, Sigma_b).T\n"
+         "    mean = mu_b + gain @ (mu_a - mu_b)\n"
+         "    cov = Sigma_b - gain @ Sigma_b",
+         mistake="the roles of a and b exchanged"),
+    Edit("gaussian_fusion", _FUSE,
+         "gain = Sigma_a @ np.linalg.inv(Sigma_a + Sigma_b)\n"
+         "    mean = mu_a + gain @ (mu_b - mu_a)\n"
+         "    cov = gain @ Sigma_b",
+         mistake="Σ = Σ_a (Σ_a + Σ_b)⁻¹ Σ_b"),
 ]
 
 EQUIVALENT_MUTANTS = [

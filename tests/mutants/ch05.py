@@ -16,13 +16,18 @@ _K = "K = P_check @ G_k.T @ np.linalg.inv(S)"
 _INNOVATION = "innovation = residual(y, g(x_check))"
 _X = "x_hat = x_check + K @ innovation"
 _P = "P_hat = (np.eye(len(x_check)) - K @ G_k) @ P_check"
+# the whole update, the exercise's multi-line section
+_UPDATE = ("G_k = G(x_check)\n    " + _S + "\n    " + _K + "\n    " + _INNOVATION + "\n    " + _X + "\n    "
+           + _P)
+# the range rate's derivatives with respect to the CTRV velocity components (v, ψ)
+_VELOCITY_COLUMNS = "G[2, 2] = (px * np.cos(psi) + py * np.sin(psi)) / r\n    " + _HEADING
 
 MUTANTS = [
     Edit("radar_jacobian", "r = np.sqrt(r2)", "r = r2", keyword="∂ρ/∂p_x",
          mistake="ρ without the square root in the Jacobian", cell="jac"),
     # --- radar_h -------------------------------------------------------------------------
     Edit("radar_h", _PHI, "phi = np.arctan(py / px)", keyword="atan2",
-         mistake="arctan(p_y / p_x) instead of atan2 (quadrant lost for p_x < 0)"),
+         mistake="arctan(p_y / p_x) instead of atan2 (quadrant lost for p_x < 0) (the stub)"),
     Edit("radar_h", _PHI, "phi = np.arctan2(px, py)", keyword="swapped",
          mistake="atan2 arguments swapped"),
     Edit("radar_h", _PHI, "phi = np.degrees(np.arctan2(py, px))", keyword="radians",
@@ -32,7 +37,7 @@ MUTANTS = [
     Edit("radar_h", "rho = np.hypot(px, py)", "rho = px**2 + py**2", keyword="square root",
          mistake="range without the square root"),
     Edit("radar_h", _RATE, "rho_dot = v", keyword="not the speed",
-         mistake="range rate = speed"),
+         mistake="range rate = speed, not projected on the line of sight (the stub)"),
     Edit("radar_h", _RATE, "rho_dot = -(px * v * np.cos(psi) + py * v * np.sin(psi)) / rho",
          keyword="moves away", mistake="range rate with the wrong sign"),
     Edit("radar_h", _RATE, "rho_dot = px * v * np.cos(psi) + py * v * np.sin(psi)",
@@ -53,7 +58,7 @@ MUTANTS = [
          keyword="divide by ρ", mistake="range rate multiplied back by ρ"),
     # --- radar_jacobian --------------------------------------------------------------------
     Edit("radar_jacobian", _BEARING_ROW, "G[1, 0], G[1, 1] = py / r2, -px / r2", keyword="signs of the bearing row",
-         mistake="bearing row with flipped signs (the exercise's stub)"),
+         mistake="bearing row with flipped signs"),
     Edit("radar_jacobian", _BEARING_ROW, "G[1, 0], G[1, 1] = -py / r, px / r", keyword="divided by ρ², not ρ",
          mistake="bearing row divided by ρ"),
     Edit("radar_jacobian", _BEARING_ROW, "G[1, 0], G[1, 1] = -px / r2, py / r2", keyword="swapped in the bearing row",
@@ -61,7 +66,11 @@ MUTANTS = [
     Edit("radar_jacobian", _BEARING_ROW, "G[1, 0], G[1, 1] = px / r2, -py / r2", keyword="∂φ/∂p_x",
          mistake="bearing row swapped and negated"),
     Edit("radar_jacobian", _HEADING, "G[2, 3] = 0.0", keyword="not 0",
-         mistake="∂ρ̇/∂ψ left at 0 (the exercise's stub)"),
+         mistake="∂ρ̇/∂ψ left at 0"),
+    Edit("radar_jacobian", _VELOCITY_COLUMNS, "G[2, 2], G[2, 3] = px / r, py / r", keyword="CV state",
+         mistake="the article's CV entries ∂ρ̇/∂v_x, ∂ρ̇/∂v_y used for the CTRV state's v and ψ (the stub)"),
+    Edit("radar_jacobian", _VELOCITY_COLUMNS, "G[2, 2] = (px * np.cos(psi) + py * np.sin(psi)) / r\n    G[2, 3] = 0.0",
+         keyword="depends on the heading", mistake="∂ρ̇/∂v by the chain rule, ∂ρ̇/∂ψ left at 0"),
     Edit("radar_jacobian", _HEADING, "G[2, 3] = (px * vy - py * vx) / r", keyword="sign of ∂ρ̇/∂ψ",
          mistake="∂ρ̇/∂ψ with the wrong sign"),
     Edit("radar_jacobian", _HEADING, "G[2, 3] = py / r", keyword="CV state",
@@ -84,7 +93,7 @@ MUTANTS = [
          keyword="central difference", mistake="forward difference with a step of 1e-2 (too coarse)", cell="jac"),
     # --- radar_residual --------------------------------------------------------------------
     Edit("radar_residual", _WRAP, "e[1] = e[1]", keyword="must be wrapped",
-         mistake="bearing not wrapped (the exercise's stub)"),
+         mistake="bearing not wrapped (the stub)"),
     Edit("radar_residual", _DIFF, "e = np.asarray(y_pred, dtype=float) - np.asarray(y, dtype=float)",
          keyword="measured minus predicted", mistake="predicted minus measured"),
     Edit("radar_residual", _WRAP, "e[1] = np.mod(e[1], 2 * np.pi)", keyword="[0, 2π)",
@@ -113,7 +122,13 @@ MUTANTS = [
          keyword="must be wrapped", mistake="the measured bearing wrapped, not the difference"),
     # --- ekf_update ------------------------------------------------------------------------
     Edit("ekf_update", _INNOVATION, "innovation = residual(y, G_k @ x_check)", keyword="g(x̌)",
-         mistake="predicted measurement G x̌ (the exercise's stub)"),
+         mistake="predicted measurement G x̌"),
+    Edit("ekf_update", _UPDATE, "x_hat, P_hat = x_check, P_check", keyword="measurement was not used",
+         mistake="the posterior is the prior, the measurement ignored (the stub of the whole update)"),
+    Edit("ekf_update", _X, "x_hat = x_check", keyword="measurement was not used",
+         mistake="covariance updated, mean left at the prior"),
+    Edit("ekf_update", _INNOVATION, "innovation = y - G_k @ x_check", keyword="nonlinear model",
+         mistake="the linear KF's residual y − G x̌"),
     Edit("ekf_update", _INNOVATION, "innovation = y - g(x_check)", keyword="residual function",
          mistake="plain difference instead of the residual function"),
     Edit("ekf_update", _INNOVATION, "innovation = residual(g(x_check), y)", keyword="sign",
@@ -194,6 +209,15 @@ EQUIVALENTS = [
     Edit("ekf_update", _X, "x_hat = x_check + np.einsum('ij,j->i', K, innovation)", mistake="einsum"),
     Edit("ekf_update", _X, "x_hat = x_check + P_check @ G_k.T @ np.linalg.solve(S, innovation)",
          mistake="S⁻¹ r by a solve"),
+    Edit("ekf_update", _UPDATE,
+         "G_k = G(x_check)\n    R_inv = np.linalg.inv(R)\n"
+         "    P_hat = np.linalg.inv(np.linalg.inv(P_check) + G_k.T @ R_inv @ G_k)\n"
+         "    x_hat = x_check + P_hat @ G_k.T @ R_inv @ residual(y, g(x_check))",
+         mistake="the whole update in information form"),
+    Edit("ekf_update", _UPDATE,
+         "G_k = G(x_check)\n    PGt = P_check @ G_k.T\n    K = np.linalg.solve(G_k @ PGt + R, PGt.T).T\n"
+         "    x_hat = x_check + K @ residual(y, g(x_check))\n    P_hat = P_check - K @ G_k @ P_check",
+         mistake="the whole update with a solve and P̌ − K G P̌"),
     Edit("radar_residual", _WRAP, "e[1] = np.unwrap([0.0, e[1]])[1]", mistake="numpy's unwrap"),
     Edit("radar_h", _RATE, "rho_dot = np.dot([px, py], [v * np.cos(psi), v * np.sin(psi)]) / np.linalg.norm([px, py])",
          mistake="ρ̇ by a dot product and a norm"),

@@ -16,11 +16,25 @@ _LOOP = "for iteration in range(1, max_iter + 1):"
 _GK = "G_k = G(x_lin)"
 _PHAT = "P_hat = (np.eye(len(x_check)) - K @ G_k) @ P_check"
 _RETURN = "return x_op, 0.5 * (P_hat + P_hat.T), iteration"
+# the whole mean step (the exercise's multi-line section) and its placeholder, the EKF's step
+_MEAN_STEP = "\n    ".join([_GOP, _GAIN, _R, _CORR, _NEXT])
+_EKF_STEP = ("G_0 = G(x_check)\n    K = P_check @ G_0.T @ np.linalg.inv(G_0 @ P_check @ G_0.T + R)\n"
+             "    x_next = x_check + K @ residual(y, g(x_check))")
+# the challenge: the convergence test in the prior's standard deviations
+_DISTANCE = "distance = np.sqrt(step @ np.linalg.solve(P_check, step))"
+_VERDICT = "return bool(distance <= tol)"
+_STD = "np.sqrt(np.diag(P_check))"
 
 MUTANTS = [
     # --- iekf_mean_step --------------------------------------------------------------------
     Edit("iekf_mean_step", _NEXT, "x_next = x_op + K @ correction", keyword="not from x_op",
-         mistake="step from x_op instead of x̌ (the exercise's second stub)"),
+         mistake="step from x_op instead of x̌"),
+    Edit("iekf_mean_step", _MEAN_STEP, _EKF_STEP, keyword="EKF's step",
+         mistake="the EKF's step, linearised at x̌ whatever x_op is (the stub of the whole mean step)"),
+    Edit("iekf_mean_step", _MEAN_STEP,
+         "G_op = G(x_op)\n    K = P_check @ G_op.T @ np.linalg.inv(G_op @ P_check @ G_op.T + R)\n"
+         "    x_next = x_op + K @ residual(y, g(x_op))",
+         keyword="only enters through", mistake="the EKF's step re-taken from each iterate, x_op + K r(x_op)"),
     Edit("iekf_mean_step", _CORR, "correction = r", keyword="missing",
          mistake="the term − G (x̌ − x_op) left out"),
     Edit("iekf_mean_step", _NEXT, "x_next = x_op + K @ r", keyword="only enters through",
@@ -43,9 +57,9 @@ MUTANTS = [
          keyword="x_{i+1} = x̌ + K_i", mistake="R⁻¹ instead of S⁻¹ in the gain"),
     # --- iekf_update -----------------------------------------------------------------------
     Edit("iekf_update", _STOP, "if np.max(np.abs(x_op - x_check)) <= tol:", keyword="previous one",
-         mistake="step measured from the prior (the exercise's first stub)"),
+         mistake="step measured from the prior (the stub)"),
     Edit("iekf_update", _GK, "G_k = G(x_check)", keyword="last linearisation",
-         mistake="final covariance from G at x̌ (the exercise's second stub)"),
+         mistake="final covariance from G at x̌ (the stub)"),
     Edit("iekf_update", _CALL, "x_op = iekf_mean_step(x_check, P_check, x_check, y, g, G, R, residual)",
          keyword="EKF's", mistake="always linearised at x̌"),
     Edit("iekf_update", _CALL, "x_op = iekf_mean_step(x_lin, P_check, x_lin, y, g, G, R, residual)",
@@ -80,6 +94,29 @@ MUTANTS = [
     # dependency-aware hint: a wrong mean step is named, not the loop
     Edit("iekf_update", _NEXT, "x_next = x_op + K @ correction", keyword="fix iekf_mean_step first",
          mistake="mean step from x_op, loop correct", cell="step"),
+    Edit("iekf_update", _MEAN_STEP, _EKF_STEP, keyword="fix iekf_mean_step first",
+         mistake="the mean step's placeholder left in, loop correct", cell="step"),
+    # --- iekf_converged (the challenge) ----------------------------------------------------
+    Edit("iekf_converged", _DISTANCE, "distance = np.max(np.abs(step))", keyword="own units",
+         mistake="the largest absolute change, units mixed (the stub)"),
+    Edit("iekf_converged", _DISTANCE, "distance = np.linalg.norm(step)", keyword="own units",
+         mistake="the Euclidean length of the step, units mixed"),
+    Edit("iekf_converged", _DISTANCE, "distance = np.sqrt(step @ P_check @ step)", keyword="instead of its inverse",
+         mistake="the step weighed by P̌, not P̌⁻¹"),
+    Edit("iekf_converged", _DISTANCE, "distance = step @ np.linalg.solve(P_check, step)", keyword="squared distance",
+         mistake="d² compared with tol"),
+    Edit("iekf_converged", _DISTANCE, f"distance = np.max(np.abs(step) / {_STD})", keyword="correlations",
+         mistake="each component in its own standard deviations, correlations ignored"),
+    Edit("iekf_converged", _DISTANCE, f"distance = np.linalg.norm(step / {_STD})", keyword="correlations",
+         mistake="Mahalanobis distance under the diagonal of P̌ only"),
+    Edit("iekf_converged", _DISTANCE, "distance = np.max(np.abs(step) / np.diag(P_check))", keyword="variances",
+         mistake="each component divided by its variance"),
+    Edit("iekf_converged", _VERDICT, "return bool(distance > tol)", keyword="inverted",
+         mistake="True when the step is long"),
+    Edit("iekf_converged", _VERDICT, "return distance", keyword="True or False",
+         mistake="the distance returned, not the verdict"),
+    Edit("iekf_converged", _VERDICT, f"return np.abs(step) / {_STD} <= tol",
+         keyword="one verdict per state component", mistake="a verdict per component"),
 ]
 
 EQUIVALENTS = [
@@ -96,6 +133,25 @@ EQUIVALENTS = [
          mistake="Joseph form"),
     Edit("iekf_update", _PHAT, "P_hat = P_check - K @ (G_k @ P_check @ G_k.T + R) @ K.T", mistake="P̌ − K S Kᵀ"),
     Edit("iekf_update", _RETURN, "return [x_op, P_hat, iteration]", mistake="a list, not symmetrised"),
+    Edit("iekf_mean_step", _MEAN_STEP,
+         "G_op = G(x_op)\n    S = G_op @ P_check @ G_op.T + R\n"
+         "    x_next = x_check + P_check @ G_op.T @ np.linalg.solve(S, residual(y, g(x_op)) + G_op @ (x_op - x_check))",
+         mistake="the whole step by a solve, the correction written as + G (x_op − x̌)"),
+    Edit("iekf_mean_step", _MEAN_STEP,
+         "G_op = G(x_op)\n    R_inv = np.linalg.inv(R)\n"
+         "    H = np.linalg.inv(P_check) + G_op.T @ R_inv @ G_op\n"
+         "    gradient = G_op.T @ R_inv @ residual(y, g(x_op)) - np.linalg.solve(P_check, x_op - x_check)\n"
+         "    x_next = x_op + np.linalg.solve(H, gradient)",
+         mistake="a Gauss–Newton step on the MAP cost J written from x_op (lecture 06 §2)"),
+    # iekf_converged (the challenge)
+    Edit("iekf_converged", _DISTANCE, "distance = np.sqrt(step @ np.linalg.inv(P_check) @ step)",
+         mistake="P̌⁻¹ by an inverse"),
+    Edit("iekf_converged", _DISTANCE, "distance = np.linalg.norm(np.linalg.solve(np.linalg.cholesky(P_check), step))",
+         mistake="whitened by the Cholesky factor"),
+    Edit("iekf_converged", _VERDICT, "return step @ np.linalg.solve(P_check, step) <= tol**2",
+         mistake="d² against tol², a numpy bool"),
+    Edit("iekf_converged", "step = np.asarray(x_next, dtype=float) - np.asarray(x_op, dtype=float)",
+         "step = x_op - x_next", mistake="the step the other way round"),
 ]
 
 EQUIVALENT_MUTANTS = [
@@ -103,6 +159,8 @@ EQUIVALENT_MUTANTS = [
                reason="a step exactly equal to tol does not occur in floating point on these cases"),
     Equivalent("iekf_mean_step", _GAIN, "K = P_check @ G_op.T @ np.linalg.inv(G_op @ P_check.T @ G_op.T + R)",
                reason="P̌ is symmetric"),
+    Equivalent("iekf_converged", _VERDICT, "return bool(distance < tol)",
+               reason="no case has a step length within 10 % of tol"),
 ]
 
 # Mistakes that also make the notebook's demo cell raise (a shape error, NaN, a singular
@@ -111,7 +169,7 @@ MUTANTS += [
     Edit("iekf_update", _RETURN, "return 0.5 * (P_hat + P_hat.T), x_op, iteration", keyword="covariance first",
          mistake="(P̂, x̂, iterations) in the wrong order"),
     Edit("iekf_mean_step", _CORR, "correction = r + G_op @ (x_check - x_op)", keyword="sign",
-         mistake="+ G (x̌ − x_op) (the exercise's first stub)"),
+         mistake="+ G (x̌ − x_op)"),
     Edit("iekf_mean_step", _CORR, "correction = r - G_op @ (x_op - x_check)", keyword="sign",
          mistake="x_op − x̌ instead of x̌ − x_op"),
     Edit("iekf_mean_step", _R, "r = residual(g(x_op), y)", keyword="measured minus predicted",

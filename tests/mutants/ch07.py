@@ -1,8 +1,9 @@
 """Chapter 07 (rotations and IMU mechanisation): plausible mistakes in the exercise's functions.
 
-The solution's cells (ids ``att``, ``vel``, ``pos``, ``run``) hold ``attitude_step``,
-``velocity_step``, ``position_step`` and ``mechanise``; an edit of one of the first three
-graded by ``mechanisation_run`` tests the dependency-aware hint.
+The solution's cells (ids ``att``, ``vel``, ``pos``, ``run``, ``level``) hold ``attitude_step``,
+``velocity_step``, ``position_step``, ``mechanise`` and the optional challenge's
+``level_attitude``; an edit of one of the first three graded by ``mechanisation_run`` tests the
+dependency-aware hint. Every stub of the exercise is a mutant here, marked "(the stub)".
 """
 
 from mutation_harness import Edit, Equivalent
@@ -11,13 +12,33 @@ NOTEBOOK = "07_imu_mechanisation"
 
 _ATT = "R_next = R @ so3.Exp(w_mean * dt)\n"
 _W = "w_mean = 0.5 * (w0 + w1) - b_w"
-_SPEC = "specific = 0.5 * (R0 @ (f0 - b_a) + R1 @ (f1 - b_a))"
-_VNEXT = "v_next = v + (specific + g) * dt"
+_A0 = "a0 = R0 @ (f0 - b_a) + g"
+_A1 = "a1 = R1 @ (f1 - b_a) + g"
+_ACC = _A0 + "\n    " + _A1
+_VNEXT = "v_next = v + 0.5 * (a0 + a1) * dt"
+_VEL = _ACC + "\n    " + _VNEXT
+_VEL_STUB = "a_mean = 0.5 * (f0 + f1) - b_a + g\n    v_next = v + a_mean * dt"
 _PNEXT = "p_next = p + 0.5 * (v0 + v1) * dt"
 _DT = "dt = imu.t[k] - imu.t[k - 1]"
 _ATT_CALL = "R[i] = attitude_step(R[i - 1], imu.angular_rate[k - 1], imu.angular_rate[k], zero, dt)"
 _VEL_ARGS = "v[i - 1], R[i - 1], R[i], imu.specific_force[k - 1], imu.specific_force[k], zero, g, dt"
 _POS_CALL = "p[i] = position_step(p[i - 1], v[i - 1], v[i], dt)"
+_VEL_CALL = "v[i] = velocity_step(" + _VEL_ARGS + ")"
+_STEP = _ATT_CALL + "\n        " + _VEL_CALL + "\n        " + _POS_CALL
+
+# the challenge: level_attitude
+_UP = "UP = np.array([0.0, 0.0, 1.0])"
+_UPB = "up_body = f / np.linalg.norm(f)"
+_AXIS = "axis = np.cross(up_body, UP)"
+_GUARD = ("if sin_tilt == 0.0:  # level, or exactly upside down: no axis to normalise\n"
+          "        return np.eye(3) if cos_tilt > 0.0 else np.diag([1.0, -1.0, -1.0])\n    ")
+_RLEV = "R = so3.Exp(np.arctan2(sin_tilt, cos_tilt) * axis / sin_tilt)"
+_LEVEL = ("up_body = f / np.linalg.norm(f)  # at rest f = −Rᵀg points up: this is up, in body coordinates\n"
+          "    axis = np.cross(up_body, UP)  # perpendicular to both: turning about it tilts one onto the other\n"
+          "    sin_tilt, cos_tilt = np.linalg.norm(axis), up_body @ UP\n    " + _GUARD + _RLEV)
+_EULER = """roll = np.arctan2(f[1], f[2])
+    pitch = np.arctan2(-f[0], np.hypot(f[1], f[2]))
+    R = so3.Exp(pitch * np.array([0.0, 1.0, 0.0])) @ so3.Exp(roll * np.array([1.0, 0.0, 0.0]))"""
 
 _RODRIGUES = """phi = w_mean * dt
     theta = np.linalg.norm(phi)
@@ -37,7 +58,7 @@ _RODRIGUES_GUARDED = """phi = w_mean * dt
 MUTANTS = [
     # --- attitude_step -------------------------------------------------------------------
     Edit("attitude_step", _ATT, "R_next = so3.Exp(w_mean * dt) @ R\n", keyword="body frame",
-         mistake="Exp(ω̄T) R: the body-frame rotation multiplied on the left"),
+         mistake="Exp(ω̄T) R: the body-frame rotation multiplied on the left (the stub)"),
     Edit("attitude_step", _ATT, "R_next = R.T @ so3.Exp(w_mean * dt)\n", keyword="transpose",
          mistake="Rᵀ Exp(ω̄T)"),
     Edit("attitude_step", _ATT, "R_next = (R @ so3.Exp(w_mean * dt)).T\n", keyword="transpose",
@@ -90,50 +111,59 @@ MUTANTS = [
     Edit("attitude_step", _ATT, "R_next = so3.Exp(w_mean * dt)\n", keyword="previous attitude",
          mistake="the previous attitude forgotten"),
 
-    # --- velocity_step -------------------------------------------------------------------
-    Edit("velocity_step", _VNEXT, "v_next = v + (specific - g) * dt", keyword="pointing down",
+    # --- velocity_step (a whole step of three lines in the exercise) ---------------------
+    Edit("velocity_step", _VEL, _VEL_STUB, keyword="body frame",
+         mistake="the body-frame readings used as navigation-frame accelerations, not rotated (the stub)"),
+    Edit("velocity_step", _ACC, _ACC.replace("+ g", "- g"), keyword="pointing down",
          mistake="the lecture's − g with the course's g = (0, 0, −9.81)"),
-    Edit("velocity_step", _VNEXT, "v_next = v + specific * dt", keyword="gravity is missing",
+    Edit("velocity_step", _ACC, _ACC.replace(" + g", ""), keyword="gravity is missing",
          mistake="gravity left out"),
-    Edit("velocity_step", _VNEXT, "v_next = v + (specific + 0.5 * g) * dt", keyword="gravity",
-         mistake="gravity halved with the readings"),
-    Edit("velocity_step", _SPEC, "specific = 0.5 * (R0 @ (f0 - b_a + g) + R1 @ (f1 - b_a + g))\n"
-         "    specific = specific - g", keyword="navigation-frame", mistake="gravity added in the body frame"),
-    Edit("velocity_step", _SPEC, "specific = 0.5 * (R0 @ f0 + R1 @ f1)", keyword="bias",
+    Edit("velocity_step", _A1, "a1 = R1 @ (f1 - b_a)", keyword="in full",
+         mistake="gravity added to one of the two accelerations only (½ g on the mean)"),
+    Edit("velocity_step", _ACC, "a0 = R0 @ (f0 - b_a + g)\n    a1 = R1 @ (f1 - b_a + g)",
+         keyword="navigation-frame", mistake="gravity added in the body frame, before rotating"),
+    Edit("velocity_step", _ACC, "a0 = R0 @ f0 + g\n    a1 = R1 @ f1 + g", keyword="bias",
          mistake="accelerometer bias not subtracted"),
-    Edit("velocity_step", _SPEC, "specific = 0.5 * (R0 @ (f0 + b_a) + R1 @ (f1 + b_a))", keyword="not added",
+    Edit("velocity_step", _ACC, _ACC.replace("- b_a", "+ b_a"), keyword="not added",
          mistake="accelerometer bias added"),
-    Edit("velocity_step", _SPEC, "specific = 0.5 * (R0 @ f0 + R1 @ f1) - b_a", keyword="before rotating",
+    Edit("velocity_step", _ACC, "a0 = R0 @ f0 - b_a + g\n    a1 = R1 @ f1 - b_a + g", keyword="before rotating",
          mistake="bias subtracted in the navigation frame"),
-    Edit("velocity_step", _SPEC, "specific = 0.5 * (R0 @ (f0 - b_a) + R0 @ (f1 - b_a))", keyword="new attitude",
-         mistake="the old attitude for the second acceleration"),
-    Edit("velocity_step", _SPEC, "specific = 0.5 * (R1 @ (f0 - b_a) + R1 @ (f1 - b_a))", keyword="old attitude",
-         mistake="the new attitude for the first acceleration"),
-    Edit("velocity_step", _SPEC, "specific = 0.5 * (R1 @ (f0 - b_a) + R0 @ (f1 - b_a))", keyword="swapped",
+    Edit("velocity_step", _A1, "a1 = R0 @ (f1 - b_a) + g", keyword="new attitude",
+         mistake="the start-of-step attitude for the second reading"),
+    Edit("velocity_step", _A0, "a0 = R1 @ (f0 - b_a) + g", keyword="old attitude",
+         mistake="the end-of-step attitude for the first reading"),
+    Edit("velocity_step", _ACC, "a0 = R1 @ (f0 - b_a) + g\n    a1 = R0 @ (f1 - b_a) + g", keyword="swapped",
          mistake="attitudes swapped between the two readings"),
-    Edit("velocity_step", _SPEC, "specific = 0.5 * ((f0 - b_a) + (f1 - b_a))", keyword="body frame",
-         mistake="readings not rotated (body frame used as navigation frame)"),
-    Edit("velocity_step", _SPEC, "specific = 0.5 * (R0.T @ (f0 - b_a) + R1.T @ (f1 - b_a))",
-         keyword="transpose", mistake="Rᵀ instead of R"),
-    Edit("velocity_step", _SPEC, "specific = R0 @ (f0 - b_a)", keyword="Euler",
+    Edit("velocity_step", _VEL, "a_mean = R1 @ (0.5 * (f0 + f1) - b_a) + g\n    v_next = v + a_mean * dt",
+         keyword="old attitude", mistake="the mean reading rotated with the end-of-step attitude"),
+    Edit("velocity_step", _VEL, "a_mean = R0 @ (0.5 * (f0 + f1) - b_a) + g\n    v_next = v + a_mean * dt",
+         keyword="new attitude", mistake="the mean reading rotated with the start-of-step attitude"),
+    Edit("velocity_step", _VEL, "R_mid = R0 @ so3.Exp(0.5 * so3.Log(R0.T @ R1))\n"
+         "    a_mean = R_mid @ (0.5 * (f0 + f1) - b_a) + g\n    v_next = v + a_mean * dt", keyword="mid-step",
+         mistake="the mean reading rotated with the mid-step attitude"),
+    Edit("velocity_step", _VEL, "a_mean = 0.5 * (R0 + R1) @ (0.5 * (f0 + f1) - b_a) + g\n"
+         "    v_next = v + a_mean * dt", keyword="own time", mistake="mean attitude times mean reading"),
+    Edit("velocity_step", _ACC, _ACC.replace("R0 @", "R0.T @").replace("R1 @", "R1.T @"), keyword="transpose",
+         mistake="Rᵀ instead of R"),
+    Edit("velocity_step", _VNEXT, "v_next = v + a0 * dt", keyword="Euler",
          mistake="Euler: the acceleration at the start of the step"),
-    Edit("velocity_step", _SPEC, "specific = R1 @ (f1 - b_a)", keyword="midpoint",
+    Edit("velocity_step", _VNEXT, "v_next = v + a1 * dt", keyword="midpoint",
          mistake="the acceleration at the end of the step"),
-    Edit("velocity_step", _SPEC, "specific = R0 @ (f0 - b_a) + R1 @ (f1 - b_a)", keyword="half the sum",
-         mistake="sum of the accelerations (the ½ missing)"),
-    Edit("velocity_step", _VNEXT, "v_next = v + specific * dt + g", keyword="g T",
-         mistake="gravity not multiplied by dt"),
-    Edit("velocity_step", _SPEC, "specific = 0.5 * (R0 @ (f0 - b_a) + R1 @ f1)", keyword="not from one only",
+    Edit("velocity_step", _VNEXT, "v_next = v + (a0 + a1) * dt", keyword="half their sum",
+         mistake="sum of the accelerations, gravity included twice (the ½ missing)"),
+    Edit("velocity_step", _VEL, "a0 = R0 @ (f0 - b_a)\n    a1 = R1 @ (f1 - b_a)\n"
+         "    v_next = v + 0.5 * (a0 + a1) * dt + g", keyword="g T", mistake="gravity not multiplied by dt"),
+    Edit("velocity_step", _A1, "a1 = R1 @ f1 + g", keyword="not from one only",
          mistake="bias subtracted from the first reading only"),
-    Edit("velocity_step", _VNEXT, "v_next = v + (specific + np.array([0.0, 0.0, -9.81])) * dt",
-         keyword="hard-coded", mistake="gravity hard-coded instead of the g handed in"),
-    Edit("velocity_step", _SPEC, "specific = 0.5 * (R0 + R1) @ (0.5 * (f0 + f1) - b_a)", keyword="own time",
-         mistake="mean attitude times mean reading"),
-    Edit("velocity_step", _VNEXT, "v_next = v + (specific + g) * dt**2", keyword="T²",
+    Edit("velocity_step", _ACC, _ACC.replace("+ g", "+ np.array([0.0, 0.0, -9.81])"), keyword="hard-coded",
+         mistake="gravity hard-coded instead of the g handed in"),
+    Edit("velocity_step", _VNEXT, "v_next = v + 0.5 * (a0 + a1) * dt**2", keyword="T²",
          mistake="T² instead of T"),
-    Edit("velocity_step", _VNEXT, "v_next = v + (specific + g)", keyword="multiply the acceleration",
+    Edit("velocity_step", _VNEXT, "v_next = v + 0.5 * (a0 + a1)", keyword="multiply the acceleration",
          mistake="dt missing"),
-    Edit("velocity_step", _VNEXT, "v_next = (specific + g) * dt", keyword="previous velocity",
+    Edit("velocity_step", _VNEXT, "v_next = v + 0.5 * (a0 + a1) * dt / 2", keyword="whole step",
+         mistake="half the step"),
+    Edit("velocity_step", _VNEXT, "v_next = 0.5 * (a0 + a1) * dt", keyword="previous velocity",
          mistake="the increment returned instead of the new velocity"),
 
     # --- position_step -------------------------------------------------------------------
@@ -147,8 +177,8 @@ MUTANTS = [
          mistake="T² instead of T"),
     Edit("position_step", _PNEXT, "p_next = p + 0.5 * (v0 + v1)", keyword="multiply the mean velocity",
          mistake="dt missing"),
-    Edit("position_step", _PNEXT, "p_next = p + v0 * dt + 0.5 * (v1 - v0) * dt**2", keyword="acceleration",
-         mistake="½ a T² with the velocity change in place of the acceleration"),
+    Edit("position_step", _PNEXT, "p_next = p + v0 * dt + 0.5 * (v1 - v0) * dt**2", keyword="units",
+         mistake="½ a T² with the velocity change in place of the acceleration: m·s, not m (the stub)"),
     Edit("position_step", _PNEXT, "p_next = p + 0.5 * (v1 - v0) * dt", keyword="sign",
          mistake="difference of the velocities instead of their sum"),
     Edit("position_step", _PNEXT, "p_next = 0.5 * (v0 + v1) * dt", keyword="previous position",
@@ -207,13 +237,51 @@ MUTANTS = [
          mistake="results returned in the wrong order"),
     Edit("mechanisation_run", "return p, v, R", "return p, v, R.transpose(0, 2, 1)", keyword="transposed",
          mistake="rotations returned transposed"),
+    # the loop's body, a whole step of three lines in the exercise
+    Edit("mechanisation_run", _STEP, "p[i], v[i], R[i] = p[i - 1], v[i - 1], R[i - 1]", keyword="no step",
+         mistake="the loop body's placeholder: every row a copy of the one before (the stub)"),
+    Edit("mechanisation_run", _STEP, _VEL_CALL + "\n        " + _ATT_CALL + "\n        " + _POS_CALL,
+         keyword="used before it is filled", mistake="the velocity step before the attitude step (R[i] still NaN)"),
+    Edit("mechanisation_run", _STEP, _ATT_CALL + "\n        " + _POS_CALL + "\n        " + _VEL_CALL,
+         keyword="used before it is filled", mistake="the position step before the velocity step (v[i] still NaN)"),
+    Edit("mechanisation_run", _POS_CALL, "p[i] = p[i - 1]", keyword="positions on",
+         mistake="the position not propagated"),
+    Edit("mechanisation_run", _VEL_CALL, "v[i] = v[i - 1]", keyword="never change",
+         mistake="the velocity not propagated"),
     # a correct mechanise with a wrong step function: the hint must blame the step
     Edit("mechanisation_run", _ATT, "R_next = so3.Exp(w_mean * dt) @ R\n", cell="att",
          keyword="fix attitude_step first", mistake="attitude_step multiplies on the left"),
-    Edit("mechanisation_run", _VNEXT, "v_next = v + (specific - g) * dt", cell="vel",
+    Edit("mechanisation_run", _ACC, _ACC.replace("+ g", "- g"), cell="vel",
          keyword="fix velocity_step first", mistake="velocity_step with the wrong gravity sign"),
     Edit("mechanisation_run", _PNEXT, "p_next = p + v0 * dt", cell="pos",
          keyword="fix position_step first", mistake="position_step with Euler's rule"),
+
+    # --- level_attitude (the optional challenge) ------------------------------------------
+    Edit("level_attitude", _LEVEL, "R = np.eye(3)", keyword="identity",
+         mistake="the identity: the IMU assumed level (the stub)"),
+    Edit("level_attitude", _RLEV, _RLEV + ".T", keyword="transposed", mistake="R_bn instead of R_nb"),
+    Edit("level_attitude", _AXIS, "axis = np.cross(UP, up_body)", keyword="transposed",
+         mistake="the cross product in the other order: the rotation turns up onto f"),
+    Edit("level_attitude", _UP, "UP = np.array([0.0, 0.0, -1.0])", keyword="points up",
+         mistake="f turned onto the direction of gravity (down)"),
+    Edit("level_attitude", _UPB, "up_body = -f / np.linalg.norm(f)", keyword="points up",
+         mistake="−f taken as up (the specific force thought to point along gravity)"),
+    Edit("level_attitude", _RLEV, "R = so3.Exp(np.arcsin(sin_tilt) * axis / sin_tilt)", keyword="quadrant",
+         mistake="the tilt from arcsin: 180° − θ beyond 90°"),
+    Edit("level_attitude", _RLEV, "R = so3.Exp(axis)", keyword="sin θ, not θ",
+         mistake="the cross product used as the rotation vector"),
+    Edit("level_attitude", _RLEV, "R = so3.Exp(np.arctan2(sin_tilt, cos_tilt) * axis)", keyword="normalise it",
+         mistake="the axis not normalised"),
+    Edit("level_attitude", _RLEV, "R = so3.Exp(np.degrees(np.arctan2(sin_tilt, cos_tilt)) * axis / sin_tilt)",
+         keyword="radians", mistake="the tilt in degrees"),
+    Edit("level_attitude", _GUARD, "", keyword="divides 0 by 0", mistake="no branch for a level IMU (0/0)"),
+    Edit("level_attitude", _LEVEL, "axis = np.cross(f, UP)\n    if np.linalg.norm(axis) == 0.0:\n"
+         "        return np.eye(3)\n    R = so3.Exp(np.arccos(f @ UP) * axis / np.linalg.norm(axis))",
+         keyword="unit vectors", mistake="arccos of f · up with f not normalised (NaN)"),
+    Edit("level_attitude", _RLEV, "R = np.eye(3) + so3.hat(np.arctan2(sin_tilt, cos_tilt) * axis / sin_tilt)",
+         keyword="not a rotation matrix", mistake="the first-order I + [φ]× instead of Exp"),
+    Edit("level_attitude", _LEVEL, _EULER.replace("np.arctan2(f[1], f[2])", "np.arctan(f[1] / f[2])"),
+         keyword="quadrant", mistake="roll and pitch with arctan(y/x): wrong beyond 90° of tilt"),
 ]
 
 EQUIVALENTS = [
@@ -240,19 +308,22 @@ EQUIVALENTS = [
     Edit("attitude_step", _W, "w_mean = (w0 + w1) / 2 - b_w", mistake="/ 2 instead of 0.5 *"),
     # velocity_step: ATOL 1e-10 m/s (imu.VELOCITY_ATOL): any order of operations rounds to
     # ~1e-14 m/s; every listed mistake changes v by ≥ 2e-3 m/s on some case
-    Edit("velocity_step", _SPEC, "specific = 0.5 * (R1 @ (f1 - b_a) + R0 @ (f0 - b_a))",
-         mistake="the lecture's order (R̃ₖāₖ + R̂ₖ₋₁āₖ₋₁)/2"),
-    Edit("velocity_step", _SPEC, "specific = 0.5 * (R0 @ f0 + R1 @ f1) - 0.5 * (R0 + R1) @ b_a",
+    Edit("velocity_step", _VEL, "specific = 0.5 * (R0 @ (f0 - b_a) + R1 @ (f1 - b_a))\n"
+         "    v_next = v + (specific + g) * dt", mistake="the mean rotated specific force, then g"),
+    Edit("velocity_step", _VEL, "a0 = R0 @ f0 - R0 @ b_a + g\n    a1 = R1 @ f1 - R1 @ b_a + g\n    " + _VNEXT,
          mistake="bias term expanded"),
-    Edit("velocity_step", _SPEC, "specific = np.mean([R0 @ (f0 - b_a), R1 @ (f1 - b_a)], axis=0)",
+    Edit("velocity_step", _VNEXT, "v_next = v + np.mean([a0, a1], axis=0) * dt",
          mistake="np.mean over the two accelerations"),
-    Edit("velocity_step", _SPEC,
-         "specific = 0.5 * (np.einsum('ij,j->i', R0, f0 - b_a) + np.einsum('ij,j->i', R1, f1 - b_a))",
-         mistake="einsum"),
-    Edit("velocity_step", _VNEXT, "v_next = v + specific * dt + g * dt", mistake="g T as its own term"),
-    Edit("velocity_step", _VNEXT, "g_up = -g\n    v_next = v + (specific - g_up) * dt",
+    Edit("velocity_step", _ACC, "a0 = np.einsum('ij,j->i', R0, f0 - b_a) + g\n"
+         "    a1 = np.einsum('ij,j->i', R1, f1 - b_a) + g", mistake="einsum"),
+    Edit("velocity_step", _VEL, "a0 = R0 @ (f0 - b_a)\n    a1 = R1 @ (f1 - b_a)\n"
+         "    v_next = v + 0.5 * (a0 + a1) * dt + g * dt", mistake="g T as its own term"),
+    Edit("velocity_step", _ACC, "g_up = -g\n    " + _ACC.replace("+ g", "- g_up"),
          mistake="the lecture's − g with g pointing up"),
-    Edit("velocity_step", _VNEXT, "v_next = list(v + (specific + g) * dt)", mistake="a list"),
+    Edit("velocity_step", _VEL, "readings = np.array([f0, f1]) - b_a\n"
+         "    a = np.einsum('kij,kj->ki', np.array([R0, R1]), readings) + g\n"
+         "    v_next = v + a.mean(axis=0) * dt", mistake="both readings rotated at once"),
+    Edit("velocity_step", _VNEXT, "v_next = list(v + 0.5 * (a0 + a1) * dt)", mistake="a list"),
     # position_step: ATOL 1e-9 m (imu.POSITION_ATOL): round-off ~1e-13 m; mistakes ≥ 0.2 m
     Edit("position_step", _PNEXT, "p_next = p + v0 * dt + 0.5 * (v1 - v0) * dt",
          mistake="p + v₀T + ½(v₁ − v₀)T"),
@@ -270,13 +341,39 @@ EQUIVALENTS = [
     Edit("mechanisation_run", _ATT_CALL,
          "R[i] = R[i - 1] @ so3.Exp((0.5 * (imu.angular_rate[k - 1] + imu.angular_rate[k])) * dt)",
          mistake="the attitude step written inline"),
+    Edit("mechanisation_run", _STEP,
+         "R_new = attitude_step(R[i - 1], imu.angular_rate[k - 1], imu.angular_rate[k], zero, dt)\n"
+         "        v_new = velocity_step(v[i - 1], R[i - 1], R_new, imu.specific_force[k - 1], "
+         "imu.specific_force[k], zero, g, dt)\n"
+         "        p[i], v[i], R[i] = position_step(p[i - 1], v[i - 1], v_new, dt), v_new, R_new",
+         mistake="the step into local names, then one assignment of the row"),
+    # level_attitude: R f/|f| against up, ATOL 1e-9 (imu.LEVEL_ATOL): every exact construction
+    # agrees to ~1e-15 and arccos to 1e-10 (tilt 1e-6 rad); the listed mistakes are ≥ 0.05 rad off
+    Edit("level_attitude", _RLEV, "R = so3.Exp(np.arccos(cos_tilt) * axis / sin_tilt)",
+         mistake="the tilt from arccos of the cosine"),
+    Edit("level_attitude", _LEVEL, _EULER, mistake="roll and pitch (atan2), heading zero"),
+    Edit("level_attitude", _LEVEL, "up_body = f / np.linalg.norm(f)\n"
+         "    q = np.concatenate([[1.0 + up_body @ UP], np.cross(up_body, UP)])\n"
+         "    R = so3.quat_to_matrix(q / np.linalg.norm(q))",
+         mistake="the half-angle quaternion (1 + u·up, u × up), normalised"),
+    Edit("level_attitude", _LEVEL, "from scipy.spatial.transform import Rotation\n"
+         "    R = Rotation.align_vectors([UP], [f])[0].as_matrix()", mistake="scipy's align_vectors"),
+    Edit("level_attitude", _LEVEL, "third = f / np.linalg.norm(f)\n"
+         "    first = np.cross([0.0, 1.0, 0.0], third)\n"
+         "    first = first / np.linalg.norm(first)\n"
+         "    R = np.array([first, np.cross(third, first), third])",
+         mistake="the rows of R_nb built as the navigation axes in body coordinates"),
+    Edit("level_attitude", _RLEV, "R = so3.Exp(np.arctan2(sin_tilt, cos_tilt) * axis / sin_tilt)\n"
+         "    R = so3.Exp(1.3 * UP) @ R", mistake="any heading: a turn about up after levelling"),
 ]
 
 EQUIVALENT_MUTANTS = [
     Equivalent("attitude_step", _W, "w_mean = 0.5 * (w1 + w0) - b_w",
                reason="floating-point addition commutes exactly: the two rates in either order"),
-    Equivalent("velocity_step", _VNEXT, "v_next = v + (g + specific) * dt",
+    Equivalent("velocity_step", _A0, "a0 = g + R0 @ (f0 - b_a)",
                reason="floating-point addition commutes exactly"),
+    Equivalent("velocity_step", _VNEXT, "v_next = v + 0.5 * (a1 + a0) * dt",
+               reason="floating-point addition commutes exactly: the lecture's order of the two"),
     Equivalent("position_step", _PNEXT, "p_next = p + 0.5 * (v1 + v0) * dt",
                reason="floating-point addition commutes exactly: the two velocities in either order"),
     Equivalent("mechanisation_run", _POS_CALL, "p[i] = position_step(p[i - 1], v[i], v[i - 1], dt)",
