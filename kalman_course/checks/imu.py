@@ -364,9 +364,9 @@ def _v(c, acc, gravity=None, T=None, v0=None):
     return v + (acc + g) * T
 
 
-_GRAVITY_SIGN = ("gravity: a = R (f − b_a) + g, and g = (0, 0, −9.81) is given pointing down, so add g. "
-                 "(The lecture writes ½(R₁ā₁ + R₀ā₀) − g with g = (0, 0, +9.81) pointing up: the same "
-                 "formula for the other sign of g; a resting accelerometer reads f = +9.81 up and a = 0)")
+_GRAVITY_SIGN = ("gravity: lecture 07 §4 writes a = R (f − b_a) + g with g = (0, 0, −9.81) pointing down, "
+                 "so g is added (the seed notes write − g with g pointing up: the same formula for the "
+                 "other sign of g). A resting accelerometer reads f = +9.81 up, and then a = 0")
 _HARD_CODED = ("use the gravity vector g handed in (it differs between the cases), not a hard-coded "
                "constant: a = R (f − b_a) + g")
 _VELOCITY_MISTAKES = [
