@@ -1,7 +1,9 @@
 """Checks for chapter 03: the linear Kalman filter, graded on KITTI GNSS excerpts.
 
 The states the checks use come from KITTI ground truth (positions and velocities of the
-car), and the whole-run check filters the excerpts' noisy 1 Hz GNSS positions.
+car), and the whole-run check filters the excerpts' noisy 1 Hz GNSS positions; the
+challenge's check (``gnss_kf_gaps``) filters them with some fixes removed. B is the
+process-noise Jacobian (Q = B (σ_a² I) Bᵀ), G the observation Jacobian.
 
 The cases are chosen so that the mistakes learners make change the result: noise levels
 other than 1 and anisotropic, non-diagonal covariances (with σ = 1 a standard deviation
@@ -198,30 +200,38 @@ def _blocks_that_differ(value: np.ndarray, expected: np.ndarray, dim: int = 3) -
 # ---------------------------------------------------------------------------------------
 
 def _q_mistakes(T, sigma_a, F, Q):
-    """Wrong Q of the CV model a learner writes, each with the hint that names it."""
+    """Wrong Q of the CV model a learner writes, each with the hint that names it.
+
+    B is the process-noise Jacobian [T²/2 I; T I] (lecture 03 §5 calls it Γ): how an
+    acceleration held over the step moves [p, v].
+    """
     I = np.eye(3)
-    gamma = np.vstack([0.5 * T**2 * I, T * I])
+    B = np.vstack([0.5 * T**2 * I, T * I])
     q = sigma_a**2
-    yield sigma_a * gamma @ gamma.T, ("σ_a is a standard deviation: square it, Q = σ_a² G Gᵀ "
-                                      "(the acceleration's variance is σ_a²)")
-    yield sigma_a**4 * gamma @ gamma.T, "σ_a is squared twice: Q = σ_a² G Gᵀ, not σ_a⁴ G Gᵀ"
+    yield q * np.eye(6), ("σ_a is the standard deviation of an acceleration, not of the state: "
+                          "Q = σ_a² I puts the noise straight on every position and velocity. The "
+                          "acceleration enters the state through the process-noise Jacobian B (how "
+                          "a held acceleration moves p and v over the step), Q = B (σ_a² I) Bᵀ "
+                          "(lecture 03 §5)")
+    yield sigma_a * B @ B.T, ("σ_a is a standard deviation: square it, Q = B (σ_a² I) Bᵀ "
+                              "(the acceleration's variance is σ_a²)")
+    yield sigma_a**4 * B @ B.T, "σ_a is squared twice: Q = B (σ_a² I) Bᵀ, not B (σ_a⁴ I) Bᵀ"
     yield symbolic.cv_process_noise_continuous(T, q, 3), (
         "that is the continuous-white-noise Q; this exercise uses piecewise-constant "
-        "acceleration, Q = G σ_a² Gᵀ with G = [T²/2 I; T I]")
+        "acceleration (held over the step), Q = B (σ_a² I) Bᵀ with B = [T²/2 I; T I]")
     swapped = np.vstack([T * I, 0.5 * T**2 * I])
-    yield q * swapped @ swapped.T, ("the blocks of G are swapped: a held acceleration moves the "
-                                    "position by T²/2 and the velocity by T, G = [T²/2 I; T I]")
-    for wrong_gamma in (np.vstack([T**2 * I, T * I]), np.vstack([0.5 * T * I, T * I]),
-                        np.vstack([0.5 * T**2 * I, I])):
-        yield q * wrong_gamma @ wrong_gamma.T, (
-            "a block of G is wrong: the position moves by ½ a T² = T²/2 · a and the velocity "
-            "by T · a, so G = [T²/2 I; T I]")
-    yield q * np.diag(np.diag(gamma @ gamma.T)), (
+    yield q * swapped @ swapped.T, ("the blocks of B are swapped: a held acceleration moves the "
+                                    "position by T²/2 and the velocity by T, B = [T²/2 I; T I]")
+    for wrong_B in (np.vstack([T**2 * I, T * I]), np.vstack([0.5 * T * I, T * I]),
+                    np.vstack([0.5 * T**2 * I, I])):
+        yield q * wrong_B @ wrong_B.T, (
+            "a block of B is wrong: the position moves by ½ a T² = T²/2 · a and the velocity "
+            "by T · a, so B = [T²/2 I; T I]")
+    yield q * np.diag(np.diag(B @ B.T)), (
         "the cross terms are missing: the same acceleration moves position and velocity, so "
         "they are correlated, off-diagonal blocks σ_a² T³/2 I")
-    yield q * np.eye(6), "Q = σ_a² G Gᵀ: the acceleration noise enters the state through G"
     unit = np.vstack([0.5 * I, I])
-    yield q * unit @ unit.T, "Q must use the time step T passed in, not 1: G = [T²/2 I; T I]"
+    yield q * unit @ unit.T, "Q must use the time step T passed in, not 1: B = [T²/2 I; T I]"
     yield F, "cv_matrices returned (Q, F): return them in the order (F, Q)"
 
 
@@ -237,8 +247,10 @@ def _f_mistakes(T, F, Q):
 def check_cv_process_noise(cv_matrices):
     """The learner's ``cv_matrices(T, sigma_a)`` returns (F, Q) of the 3-D CV model."""
     for T, sigma_a in CV_CASES:
-        result = _call(cv_matrices, T, sigma_a, hint="F and Q are (6, 6): G = [T²/2 I; T I] is "
-                                                      "(6, 3) and Q = σ_a² G Gᵀ")
+        result = _call(cv_matrices, T, sigma_a, hint="F and Q are (6, 6): the process-noise "
+                                                      "Jacobian B = [T²/2 I; T I] is (6, 3), the "
+                                                      "acceleration's covariance σ_a² I is (3, 3) "
+                                                      "and Q = B (σ_a² I) Bᵀ")
         F_res, Q_res = _pair(result, "cv_matrices", ("F", "Q"))
         F, Q = _cv_reference(T, sigma_a)
         # default rtol 1e-7: any correct way to write F and Q is exact to ~1e-16 here; the
@@ -247,11 +259,12 @@ def check_cv_process_noise(cv_matrices):
                      hint="F = [[I, T I], [0, I]]")
         Q_arr = as_array(Q_res, f"Q for T={T}")
         if Q_arr.shape == (3, 3):
-            raise CheckFailed(f"Q for T={T} has shape (3, 3), expected (6, 6). Hint: G = "
-                              "[T²/2 I; T I] is (6, 3), so Q = σ_a² G Gᵀ is (6, 6); Gᵀ G is (3, 3)")
+            raise CheckFailed(f"Q for T={T} has shape (3, 3), expected (6, 6). Hint: B = "
+                              "[T²/2 I; T I] is (6, 3), so Q = B (σ_a² I) Bᵀ is (6, 6); Bᵀ B is "
+                              "(3, 3)")
         value = expect_shape(Q_arr, Q.shape, f"Q for T={T}")
         expect_close(value, Q, f"Q for T={T}, sigma_a={sigma_a}", mistakes=_q_mistakes(T, sigma_a, F, Q),
-                     hint=f"Q = σ_a² G Gᵀ with G = [T²/2 I; T I], blocks σ_a² [[T⁴/4 I, T³/2 I], "
+                     hint=f"Q = B (σ_a² I) Bᵀ with B = [T²/2 I; T I], blocks σ_a² [[T⁴/4 I, T³/2 I], "
                           f"[T³/2 I, T² I]]; the blocks that differ: "
                           f"{_blocks_that_differ(value, Q)}")
         expect_symmetric(value, "Q")
@@ -286,8 +299,10 @@ def _prior_mistakes(x_hat, P_hat, F, Q):
     yield P_hat + Q, "F is missing: the covariance is propagated, P̌ = F P̂ Fᵀ + Q"
     yield P_hat, "P̌ equals P̂: the prior covariance is P̌ = F P̂ Fᵀ + Q"
     yield F @ P_hat + Q, "Fᵀ is missing on the right: P̌ = F P̂ Fᵀ + Q"
-    yield F @ (P_hat + Q) @ F.T, ("Q is added after the propagation, not propagated through F: "
-                                  "P̌ = F P̂ Fᵀ + Q")
+    yield F @ (P_hat + Q) @ F.T, ("Q was propagated through F: Q is the covariance the noise "
+                                  "adds during the step, already as it stands at the step's end "
+                                  "(B carried the held acceleration there), so Q is added after the "
+                                  "propagation of P̂, not before: P̌ = F P̂ Fᵀ + Q")
     yield F * P_hat * F.T + Q, ("element-wise product: multiply matrices with @ "
                                 "(P̌ = F @ P̂ @ F.T + Q), not *")
     yield F @ P_hat @ F.T + np.sqrt(np.abs(Q)), ("Q already holds variances: add Q as it is, "
@@ -323,6 +338,9 @@ def _s_mistakes(P_check, G, R):
     m = len(R)
     w, V = np.linalg.eigh(R)
     sqrtm_R = (V * np.sqrt(w)) @ V.T
+    yield R, ("S is the covariance of the innovation y − G x̌ before y is seen: the prior's error "
+              "seen through G adds to the measurement noise. S = R leaves out the prior's "
+              "uncertainty, as if x̌ were exact (lecture 03 §3: Σ_yy)")
     yield GPGt, "S = G P̌ Gᵀ + R: the measurement noise is missing"
     yield GPGt + np.sqrt(np.abs(R)), ("R already holds variances (σ²): S = G P̌ Gᵀ + R, not "
                                       "+ √R (a standard deviation)")
@@ -365,7 +383,9 @@ def check_kf_gain(kf_gain):
         K_res, S_res = _pair(result, "kf_gain", ("K", "S"), ((n, m), (m, m)))
         # default rtol 1e-7: inverse, solve, pinv or Cholesky agree to ~1e-13 (cond(S) < 1e3)
         _expect(S_res, ref.S, "S", formula="S = G P̌ Gᵀ + R", mistakes=_s_mistakes(P_check, G, R))
-        _expect(K_res, ref.K, "K", formula="K = P̌ Gᵀ (G P̌ Gᵀ + R)⁻¹",
+        _expect(K_res, ref.K, "K", formula="K = P̌ Gᵀ S⁻¹ is (n, m): it turns an innovation (m,) "
+                                           "into a state correction (n,); np.linalg.solve(S, G P̌) "
+                                           "gives S⁻¹ G P̌, which is Kᵀ",
                 mistakes=_k_mistakes(P_check, G, R, ref.S, ref.K))
 
 
@@ -381,6 +401,10 @@ def _posterior_mean_mistakes(x_check, y, G, K, innovation):
     yield x_check + K @ y, ("the innovation is y − G x̌: subtract the predicted measurement "
                             "G x̌ from y")
     yield x_check, "x̂ equals the prior x̌: add the correction, x̂ = x̌ + K (y − G x̌)"
+    m = len(y)
+    yield x_check + K @ (y - x_check[:m]), (
+        "the predicted measurement is G x̌: G maps the state into measurement space. y − x̌[:m] "
+        "works only when G picks the first m components, and here G is dense")
 
 
 def _gain_inside_update_mistakes(x_check, P_check, G, R, ref):
@@ -419,6 +443,18 @@ def _posterior_cov_mistakes(P_check, G, R, S, K):
     yield P_check - K @ R @ K.T, r_for_s
 
 
+def _is_the_prior(x_res, P_res, x_check, P_check) -> bool:
+    """Whether ``kf_update`` returned its prior unchanged (the exercise's placeholder).
+
+    Every case's update moves the mean and shrinks the covariance by far more than the
+    tolerance (rtol 1e-9), so only a posterior that ignores y matches.
+    """
+    x_arr, P_arr = as_array(x_res, "x_hat"), as_array(P_res, "P_hat")
+    return (x_arr.shape == x_check.shape and P_arr.shape == P_check.shape
+            and np.allclose(x_arr, x_check, rtol=1e-9, atol=1e-12)
+            and np.allclose(P_arr, P_check, rtol=1e-9, atol=1e-12))
+
+
 @check(uses=("kf_gain",))
 def check_kf_update(kf_update):
     """The learner's ``kf_update(x_check, P_check, y, G, R)`` returns (x_hat, P_hat)."""
@@ -427,6 +463,11 @@ def check_kf_update(kf_update):
         n = len(x_check)
         result = _call(kf_update, *case, hint=SHAPES_UPDATE)
         x_res, P_res = _pair(result, "kf_update", ("x_hat", "P_hat"), ((n,), (n, n)))
+        if _is_the_prior(x_res, P_res, x_check, P_check):
+            raise CheckFailed("the posterior equals the prior (x̂ = x̌ and P̂ = P̌): the measurement y "
+                              "was not used. Hint: the update corrects the prior mean by the gain "
+                              "times the innovation y − G x̌ and shrinks the covariance, in Joseph "
+                              "form (lecture 03 §3 and §8)")
         # default rtol 1e-7: the short form (I − K G) P̌ (the seed lecture's form), P̌ − K S Kᵀ
         # and the Joseph form agree to ~1e-13 for the optimal gain, so all are accepted
         _expect(x_res, ref.x_hat, "x_hat", formula="x̂ = x̌ + K (y − G x̌)",
@@ -522,7 +563,7 @@ def _run_mistakes(t, y, sigma_a, sigma_gnss):
     yield variant(r_var=1.0), "R = σ_gnss² I: use the sigma_gnss passed in, not R = I"
     yield variant(q_sigma=sigma_a**2), ("cv_matrices takes the standard deviation σ_a and squares "
                                         "it itself: pass sigma_a, not sigma_a**2")
-    yield variant(q_sigma=np.sqrt(sigma_a)), "Q = σ_a² G Gᵀ: σ_a was not squared"
+    yield variant(q_sigma=np.sqrt(sigma_a)), "Q = B (σ_a² I) Bᵀ: σ_a was not squared"
     yield variant(q_sigma=1.0), "the process noise must use the sigma_a passed in, not 1"
     for step in (lambda t, k: 1.0, lambda t, k: float(np.mean(np.diff(t))),
                  lambda t, k: t[k] - t[0], lambda t, k: t[k]):
@@ -623,3 +664,180 @@ def check_gnss_kf_run(run_gnss_kf):
         expect_close(P_hat, P_ref, f"P_hat on the '{name}' excerpt", rtol=1e-6, atol=1e-9,
                      hint="x_hat is right but P_hat is not: store the posterior covariance of "
                           "each step, the one returned with x_hat")
+
+
+# ---------------------------------------------------------------------------------------
+# challenge: missing fixes
+# ---------------------------------------------------------------------------------------
+
+#: Rows of the excerpts' fixes that the gaps check removes: single dropouts, a 4 s outage
+#: (rows 8–11) and the last fix (a gap that no later fix ends). Negative rows count from
+#: the end.
+GAP_ROWS = (3, 8, 9, 10, 11, 17, -1)
+
+
+def with_missing_fixes(y) -> np.ndarray:
+    """A copy of the fixes ``y`` (N, 3) with the rows of :data:`GAP_ROWS` set to NaN."""
+    y = np.array(y, dtype=float)
+    y[sorted({row % len(y) for row in GAP_ROWS})] = np.nan
+    return y
+
+
+def reference_gnss_kf_gaps(t, y, sigma_a=SIGMA_A, sigma_gnss=SIGMA_GNSS, sigma_v0=SIGMA_V0):
+    """:func:`reference_gnss_kf` where a row of ``y`` that is all NaN is a missing fix.
+
+    Every step predicts over its own time step; a step with a fix then updates, a step
+    without one keeps its prior as its posterior.
+
+    Returns
+    -------
+    x_hat : ndarray, shape (N, 6)
+    P_hat : ndarray, shape (N, 6, 6)
+    """
+    return _gaps_variant(t, y, sigma_a, sigma_gnss, sigma_v0)
+
+
+def _gaps_variant(t, y, sigma_a, sigma_gnss, sigma_v0=SIGMA_V0, *, at_gap="prior"):
+    """The gaps reference, or a run making one learner mistake at the missing fixes.
+
+    Parameters
+    ----------
+    t, y, sigma_a, sigma_gnss, sigma_v0
+        As :func:`reference_gnss_kf_gaps`.
+    at_gap : {"prior", "stale", "stale_then_long", "predicted", "last_fix", "zero"}
+        What a step without a fix does: keep the prior (the reference); store the last
+        posterior and skip the prediction ("stale", the next step predicts over its own
+        time step only; "stale_then_long", the next step predicts over the whole time since
+        the last prediction); or update with a made-up fix: the predicted position, the
+        last fix received, or zeros.
+
+    Returns
+    -------
+    x_hat : ndarray, shape (N, 6)
+    P_hat : ndarray, shape (N, 6, 6)
+    """
+    G = position_observation()
+    R = sigma_gnss**2 * np.eye(3)
+    x = np.r_[y[0], np.zeros(3)]
+    P = np.diag(np.r_[np.full(3, sigma_gnss**2), np.full(3, sigma_v0**2)])
+    xs, Ps = [x], [P]
+    last_fix, t_state = y[0], t[0]   # the last fix used, the time x and P refer to
+    for k in range(1, len(t)):
+        missing = bool(np.all(np.isnan(y[k])))
+        if missing and at_gap in ("stale", "stale_then_long"):
+            xs.append(x)
+            Ps.append(P)
+            continue
+        T = t[k] - (t_state if at_gap == "stale_then_long" else t[k - 1])
+        x, P = kf.kf_predict(x, P, *cv_matrices_reference(T, sigma_a))
+        t_state = t[k]
+        if missing:
+            made_up = {"prior": None, "predicted": G @ x, "last_fix": last_fix,
+                       "zero": np.zeros(3)}[at_gap]
+            if made_up is not None:
+                x, P = kf.kf_update(x, P, made_up, G, R, joseph=True)[:2]
+        else:
+            x, P = kf.kf_update(x, P, y[k], G, R, joseph=True)[:2]
+            last_fix = y[k]
+        xs.append(x)
+        Ps.append(P)
+    return np.array(xs), np.array(Ps)
+
+
+@functools.lru_cache(maxsize=None)
+def _gaps_reference(name: str, sigma_a: float, sigma_gnss: float):
+    """(t, y with gaps, x_ref, P_ref) of a gaps case (the same for every learner)."""
+    fixes = load_kitti(name).gnss.observations()
+    y = with_missing_fixes(fixes.position)
+    y.flags.writeable = False
+    return (fixes.t, y, *reference_gnss_kf_gaps(fixes.t, y, sigma_a, sigma_gnss))
+
+
+def _gaps_mistakes(t, y, sigma_a, sigma_gnss):
+    """Runs with one mistake at the missing fixes each, and the hint naming it (lazily)."""
+    after = ("With no fix the posterior is the prior (lecture 03 §3): at t[k] the best estimate "
+             "is the prediction to t[k], and the next step predicts on from there")
+    yield _gaps_variant(t, y, sigma_a, sigma_gnss, at_gap="stale"), (
+        "at a missing fix you stored the last posterior and skipped the prediction: time passes "
+        f"during an outage, and the car moves on. {after}")
+    yield _gaps_variant(t, y, sigma_a, sigma_gnss, at_gap="stale_then_long"), (
+        "the rows of the missing fixes hold the last posterior, and the next fix predicts over the "
+        "whole gap at once: store the prediction to t[k] at each missing fix, and predict step by "
+        "step (one long step holds one acceleration for the whole gap, which is another model). "
+        + after)
+    yield _gaps_variant(t, y, sigma_a, sigma_gnss, at_gap="predicted"), (
+        "a missing fix is no measurement: updating with the predicted position G x̌ leaves the mean "
+        f"but shrinks P̂ as if a fix had arrived. {after}")
+    yield _gaps_variant(t, y, sigma_a, sigma_gnss, at_gap="last_fix"), (
+        "a missing fix is not the last fix received again: that fix was used already, and using it "
+        f"twice pulls the estimate back to where the car was. {after}")
+    yield _gaps_variant(t, y, sigma_a, sigma_gnss, at_gap="zero"), (
+        "a missing fix is no fix at the origin (np.nan_to_num makes NaN 0): skip its update. "
+        + after)
+
+
+@check(uses={"cv_matrices": "cv_process_noise", "kf_predict": "kf_predict", "kf_gain": "kf_gain",
+             "kf_update": "kf_update"})
+def check_gnss_kf_gaps(run_gnss_kf_gaps):
+    """The learner's ``run_gnss_kf_gaps(t, y, sigma_a, sigma_gnss)``: the KITTI excerpts'
+    fixes with a 4 s outage, single dropouts and the last fix missing (NaN rows).
+
+    Tolerance as in :func:`check_gnss_kf_run` (rtol 1e-6; atol 1e-6 m for x, 1e-9 for P);
+    the nearest mistake, the last fix's prior replaced by its stale posterior, differs by
+    more than 1e-2 m in that row.
+    """
+    for name, sigma_a, sigma_gnss in RUN_CASES:
+        t, y, x_ref, P_ref = _gaps_reference(name, sigma_a, sigma_gnss)
+        N = len(t)
+        missing = set(np.flatnonzero(np.all(np.isnan(y), axis=1)).tolist())
+        # a copy: a learner's in-place edit of y (np.nan_to_num(y, copy=False)) must not
+        # change the cached case
+        result = _call(run_gnss_kf_gaps, t, y.copy(), sigma_a, sigma_gnss,
+                       hint="y is (N, 3) with NaN rows where a fix is missing; x_hat is (N, 6) "
+                            "and P_hat (N, 6, 6), one row per time t[k]")
+        x_res, P_res = _pair(result, "run_gnss_kf_gaps", ("x_hat (N, 6)", "P_hat (N, 6, 6)"))
+        for value, ref, what in ((x_res, x_ref, "x_hat"), (P_res, P_ref, "P_hat")):
+            arr = as_array(value, what)
+            if arr.ndim == ref.ndim and arr.shape[1:] == ref.shape[1:] and arr.shape[0] != N:
+                raise CheckFailed(f"{what} on the '{name}' excerpt has {arr.shape[0]} rows for {N} "
+                                  f"times ({len(missing)} fixes missing). Hint: one row per time "
+                                  "t[k], also where the fix is missing: there the row is the "
+                                  "estimate without that fix")
+            if arr.shape == ref.shape and not np.all(np.isfinite(arr)):
+                row = int(np.flatnonzero(~np.all(np.isfinite(arr.reshape(N, -1)), axis=1))[0])
+                why = (f"fix {row} is missing (NaN) and an update with it makes the state NaN from "
+                       "there on: skip the update where y[k] is all NaN (the posterior is then the "
+                       "prior)" if row in missing else "check the steps around it")
+                raise CheckFailed(f"{what} on the '{name}' excerpt contains NaN from row {row} on. "
+                                  f"Hint: {why}")
+        x_hat = expect_shape(x_res, x_ref.shape, "x_hat")
+        P_hat = expect_shape(P_res, P_ref.shape, "P_hat")
+        # rtol 1e-6, atol 1e-6 m (x) and 1e-9 (P): see the docstring
+        if np.allclose(x_hat, x_ref, rtol=1e-6, atol=1e-6) and \
+                np.allclose(P_hat, P_ref, rtol=1e-6, atol=1e-9):
+            continue
+        initial = _initial_state_hint(x_hat[0], P_hat[0], y[0], sigma_gnss)
+        if initial is not None:
+            raise CheckFailed(f"row 0 of x_hat / P_hat on the '{name}' excerpt is wrong. Hint: {initial}")
+        for (x_wrong, P_wrong), why in _gaps_mistakes(t, y, sigma_a, sigma_gnss):
+            if np.allclose(x_hat, x_wrong, rtol=1e-6, atol=1e-6) and \
+                    np.allclose(P_hat, P_wrong, rtol=1e-6, atol=1e-9):
+                raise CheckFailed(f"the run on the '{name}' excerpt with missing fixes is wrong. "
+                                  f"Hint: {why}")
+        wrong_rows = [k for k in range(N) if not (
+            np.allclose(x_hat[k], x_ref[k], rtol=1e-6, atol=1e-6)
+            and np.allclose(P_hat[k], P_ref[k], rtol=1e-6, atol=1e-9))]
+        first = wrong_rows[0]
+        where = (f"row {first} is a missing fix: there the posterior is the prior, predicted to "
+                 f"t[{first}] over its own time step" if first in missing else
+                 f"row {first} has a fix" + (", right after a missing one: the step still "
+                                               "predicts over t[k] − t[k−1] from the row before"
+                                               if first - 1 in missing else
+                                               ": before the first missing fix the run is "
+                                               "run_gnss_kf's, a prediction over the step's own "
+                                               "time step t[k] − t[k−1] and an update with y[k]"))
+        expect_close(x_hat, x_ref, f"x_hat on the '{name}' excerpt with missing fixes", rtol=1e-6,
+                     atol=1e-6, hint=f"the first wrong row is {first}; {where}")
+        expect_close(P_hat, P_ref, f"P_hat on the '{name}' excerpt with missing fixes", rtol=1e-6,
+                     atol=1e-9, hint=f"x_hat is right but P_hat is not; the first wrong row is "
+                                     f"{first}; {where}")

@@ -1,4 +1,5 @@
-"""Checks for chapter 04: the CTRV step and its Jacobian, graded on KITTI states.
+"""Checks for chapter 04: the CTRV step, its Jacobian and (the challenge) its process noise,
+graded on KITTI states.
 
 The states are the car's true CTRV states [p_x, p_y, v, ψ, ω] on the KITTI excerpts
 (ω from the gyro), then the same car driving straight (ω = 0 exactly), then a sweep of
@@ -220,8 +221,10 @@ def _step_mistakes(x, T, expected):
                              "the first term of the ω → 0 series; below the switch keep the series' "
                              "terms in ω T (or use the straight line only where |ω T| ≲ 1e-6)")
         else:
-            yield straight, ("with ω ≠ 0 the car turns: use the closed form; the straight line is "
-                             "only the ω → 0 limit")
+            yield straight, ("your step drives straight along the initial heading (the placeholder "
+                             "does): with ω ≠ 0 the car turns during the step, so integrate its "
+                             "velocity v (cos, sin)(ψ + ω t) over the step, the closed form of "
+                             "lecture 04 §2; the straight line is only the ω → 0 limit")
         yield variant(i1=py + v / om * (np.cos(psi + wt) - np.cos(psi))), (
             "p_y: the integral of v sin(ψ + ω t) is v/ω (cos ψ − cos(ψ + ω T)); check the order "
             "of the cosines")
@@ -318,8 +321,9 @@ def _jacobian_mistakes(x, T, expected):
         # in its ∂/∂v, ∂/∂ψ and ∂/∂ω entries)
         flipped = expected.copy()
         flipped[1, 2:5] = -flipped[1, 2:5]
-        yield flipped, ("p_y: the integral of v sin(ψ + ω t) is v/ω (cos ψ − cos(ψ + ω T)); check "
-                        "the order of the cosines in the model you differentiate")
+        yield flipped, ("p_y's derivatives have the wrong sign: p_y integrates v sin(ψ + ω t), which "
+                        "gives v/ω (cos ψ − cos(ψ + ω T)); check the sign of p_y's velocity (or the "
+                        "order of the cosines) in the model you differentiate")
     yield symbolic.ctrv_jacobian(np.asarray(x, dtype=float)[[0, 1, 3, 2, 4]], T), (
         "the Jacobian is evaluated with v and ψ exchanged: the arguments of the lambdified "
         "function are in another order than the call (p_x, p_y, v, ψ, ω, T)")
@@ -351,3 +355,119 @@ def check_ctrv_jacobian(ctrv_jacobian):
                 "compare your Jacobian with finite differences of your ctrv_step")
         expect_close(got, expected, f"ctrv_jacobian at a KITTI state {_where(x, T)}", rtol=0.0,
                      atol=atol, mistakes=_jacobian_mistakes(x, T, expected), hint=hint)
+
+
+# ---------------------------------------------------------------------------------------
+# challenge: the CTRV process noise
+# ---------------------------------------------------------------------------------------
+
+#: (T, σ_a, σ_ψ̈) of the process-noise check: T on both sides of 1 (T, T²/2 and T² differ,
+#: T = 2 where T²/2 = T is avoided), each σ ≠ 1 and on both sides of it, σ_a ≠ σ_ψ̈.
+NOISE_SETTINGS = ((0.1, 3.0, 0.3), (1.0, 0.6, 1.7), (2.5, 1.5, 0.4))
+#: Headings of the process-noise check, one per quadrant: cos ψ and sin ψ differ in size and
+#: in sign, so a frame mistake or swapped cos/sin shows.
+NOISE_HEADINGS = (0.4, 2.2, -2.7, -1.1)
+STATE_NAMES = ("p_x", "p_y", "v", "ψ", "ω")
+
+
+@functools.lru_cache(maxsize=None)
+def _noise_cases():
+    """(state, T, σ_a, σ_ψ̈, Q) of the process-noise check: the first two turning KITTI states
+    of :func:`kitti_ctrv_cases` (the hardest-turning one of the 'turns' excerpt and another;
+    speed and gyro turn rate real) at the headings of :data:`NOISE_HEADINGS`, for every
+    setting of :data:`NOISE_SETTINGS`."""
+    turning = [x for x, T, _, _ in kitti_ctrv_cases()[::len(STEPS)]][:2]
+    cases = []
+    for T, sigma_a, sigma_yaw in NOISE_SETTINGS:
+        for k, psi in enumerate(NOISE_HEADINGS):
+            x = turning[k % 2].copy()
+            x[3] = psi
+            x.flags.writeable = False
+            cases.append((x, T, sigma_a, sigma_yaw,
+                          symbolic.motion_process_noise("ctrv", x, T, (sigma_a, sigma_yaw))))
+    return tuple(cases)
+
+
+def _noise_jacobian(T, heading, half=0.5, rate=None):
+    """A CTRV noise Jacobian (5, 2) of the lecture's shape, with the push of ν_a along
+    ``heading`` = (c, s), position factor ``half`` · T² and rate factor ``rate`` (default T)."""
+    rate = T if rate is None else rate
+    c, s = heading
+    return np.array([[half * T**2 * c, 0.0], [half * T**2 * s, 0.0], [rate, 0.0],
+                     [0.0, half * T**2], [0.0, rate]])
+
+
+def _noise_mistakes(x, T, sigma_a, sigma_yaw):
+    """(wrong Q, hint) of the known wrong process noises; a generator, built only on failure."""
+    psi, om = x[3], x[4]
+    var = np.array([sigma_a**2, sigma_yaw**2])
+
+    def through(B, variances=var):
+        return (B * variances) @ B.T
+
+    B = _noise_jacobian(T, (np.cos(psi), np.sin(psi)))
+    yield np.diag([0.0, 0.0, (sigma_a * T)**2, 0.0, (sigma_yaw * T)**2]), (
+        "your Q puts the noise on the speed and the turn rate only (the placeholder does): an "
+        "acceleration held over the step also moves the position (by T²/2 along the heading) and "
+        "the heading (by T²/2), and since one noise moves both, Q has cross terms. Build "
+        "B = ∂f/∂w (5, 2) and map the noise's covariance through it, Q = B diag(σ_a², σ_ψ̈²) Bᵀ "
+        "(lecture 04 §2)")
+    yield np.diag(np.diag(through(B))), (
+        "the cross terms are missing: the same acceleration moves the position and the speed (and "
+        "the heading and the turn rate), so they are correlated: Q = B diag(σ_a², σ_ψ̈²) Bᵀ, not "
+        "its diagonal")
+    yield through(_noise_jacobian(T, (1.0, 0.0))), (
+        "ν_a is the longitudinal acceleration: it pushes the car along its heading ψ, so it moves "
+        "p_x and p_y by T²/2 (cos ψ, sin ψ), not along the x axis of the navigation frame")
+    yield through(_noise_jacobian(T, (np.sin(psi), np.cos(psi)))), (
+        "cos and sin are swapped: ψ is measured from the x axis, so ν_a moves p_x by T²/2 cos ψ "
+        "and p_y by T²/2 sin ψ")
+    for turned in (psi + om * T, psi + om * T / 2):
+        yield through(_noise_jacobian(T, (np.cos(turned), np.sin(turned)))), (
+            "by the lecture's convention ν_a pushes along the heading at the start of the step, ψ "
+            "(the turn during the step is neglected), not the heading at its end or middle")
+    yield through(_noise_jacobian(T, (np.cos(psi), np.sin(psi)), half=1.0 / T, rate=0.5 * T**2)), (
+        "T and T²/2 are swapped: an acceleration held over T changes the speed (or the turn rate) "
+        "by T times it and moves the position (or the heading) by T²/2 times it")
+    no_half = ("the position and heading rows of B are T²/2 (∫₀ᵀ t dt: the held acceleration's "
+               "push builds up over the step), not T²")
+    for rows in ((0, 1), (3,), (0, 1, 3)):
+        doubled = B.copy()
+        doubled[rows, :] *= 2.0
+        yield through(doubled), no_half
+    yield through(B, np.array([sigma_a, sigma_yaw])), (
+        "sigma_a and sigma_yaw are standard deviations: the noise's covariance is "
+        "diag(σ_a², σ_ψ̈²)")
+    yield through(B, var[::-1]), (
+        "the variances are swapped: the first noise component is ν_a (sigma_a, m/s²), the second "
+        "ν_ψ̈ (sigma_yaw, rad/s²)")
+
+
+@check
+def check_ctrv_process_noise(ctrv_process_noise):
+    """The learner's ``ctrv_process_noise(x, T, sigma_a, sigma_yaw)`` against
+    ``symbolic.motion_process_noise("ctrv", ...)``, on turning KITTI states at four headings.
+
+    Tolerance: expect_close's rtol 1e-7 with atol 1e-12. A correct Q (B by hand or by SymPy,
+    any bracketing) agrees to ~1e-15 relative; the smallest mistake in the list,
+    the heading at mid-step at T = 0.1 s, moves the position entries by ~1e-2 relative.
+    """
+    for x, T, sigma_a, sigma_yaw, expected in _noise_cases():
+        where = f"ψ = {x[3]} rad, T = {T} s, σ_a = {sigma_a}, σ_ψ̈ = {sigma_yaw}"
+        try:
+            result = call(ctrv_process_noise, x.copy(), T, sigma_a, sigma_yaw)
+        except CheckFailed as exc:  # usually a shape mismatch in a product
+            raise CheckFailed(f"{exc}. Hint: B = ∂f/∂w is (5, 2) (one column per noise), the "
+                              "noise's covariance diag(σ_a², σ_ψ̈²) is (2, 2), and Q = B Σ_w Bᵀ "
+                              "is (5, 5)") from None
+        got = as_array(result, f"ctrv_process_noise ({where})")
+        if got.shape == (2, 2):
+            raise CheckFailed("Q has shape (2, 2), expected (5, 5): that is Bᵀ Σ B (or the noise's "
+                              "own covariance); B is (5, 2) and Q = B diag(σ_a², σ_ψ̈²) Bᵀ is (5, 5)")
+        got = expect_shape(got, (5, 5), f"Q ({where})")
+        rows = [name for i, name in enumerate(STATE_NAMES)
+                if not np.allclose(got[i], expected[i], rtol=1e-7, atol=1e-12)]
+        expect_close(got, expected, f"Q at a KITTI state ({where})", rtol=1e-7, atol=1e-12,
+                     mistakes=_noise_mistakes(x, T, sigma_a, sigma_yaw),
+                     hint="Q = B diag(σ_a², σ_ψ̈²) Bᵀ with B = ∂f/∂w (5, 2) of lecture 04 §2; the "
+                          f"rows that differ: {', '.join(rows) or 'none'}")

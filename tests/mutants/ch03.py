@@ -2,17 +2,20 @@
 
 Each mutant is one learner mistake written into the reference solution; each equivalent a
 correct way to write the same step. The cells: ``cv`` (cv_matrices), ``predict``,
-``gain``, ``update`` and ``run`` (run_gnss_kf). Tolerances are stated in
+``gain``, ``update`` (its fix region is the whole update), ``run`` (run_gnss_kf) and the
+challenge's ``gaps`` (run_gnss_kf_gaps). B is the process-noise Jacobian, G the
+observation Jacobian. Each stub of the exercise is a mutant here too, marked "(the stub)":
+its edit turns the solution cell into the exercise's cell. Tolerances are stated in
 ``kalman_course/checks/kf.py``: rtol 1e-7 for the step functions (every correct variant
-below agrees to ~1e-13), rtol 1e-6 for the whole run.
+below agrees to ~1e-13), rtol 1e-6 for the runs.
 """
 
 from mutation_harness import Edit, Equivalent
 
 NOTEBOOK = "03_kalman_filter"
 
-Q = "Q = sigma_a**2 * G @ G.T"
-GAMMA = "G = np.vstack([0.5 * T**2 * I, T * I])"
+Q = "Q = B @ (sigma_a**2 * I) @ B.T"
+NOISE_JACOBIAN = "B = np.vstack([0.5 * T**2 * I, T * I])"
 F = "F = np.block([[I, T * I], [np.zeros((dim, dim)), I]])"
 PRED_P = "P_check = F @ P_hat @ F.T + Q"
 PRED_X = "x_check = F @ x_hat"
@@ -20,7 +23,10 @@ S = "S = G @ P_check @ G.T + R"
 K = "K = P_check @ G.T @ np.linalg.inv(S)"
 INNOV = "innovation = y - G @ x_check"
 XHAT = "x_hat = x_check + K @ innovation"
+I_KG = "I_KG = np.eye(len(x_check)) - K @ G"
 JOSEPH = "P_hat = I_KG @ P_check @ I_KG.T + K @ R @ K.T"
+# the whole update (the exercise's fix region) and its placeholder stub
+UPDATE_STEP = f"{INNOV}\n    {XHAT}\n    {I_KG}\n    {JOSEPH}"
 RET_UPDATE = "return x_hat, 0.5 * (P_hat + P_hat.T)"
 R_RUN = "R = sigma_gnss**2 * np.eye(3)"
 P0 = "P = np.diag(np.r_[np.full(3, sigma_gnss**2), np.full(3, sigma_v0**2)])"
@@ -29,29 +35,37 @@ CV_CALL = "F, Q = cv_matrices(t[k] - t[k - 1], sigma_a)"
 UPDATE_CALL = "x, P = kf_update(x, P, y[k], G, R)"
 LOOP = "for k in range(1, len(t)):"
 STORE = "xs, Ps = [x], [P]"
+# the challenge's loop body (run_gnss_kf_gaps)
+GAP_STEP = ("F, Q = cv_matrices(t[k] - t[k - 1], sigma_a)\n        x, P = kf_predict(x, P, F, Q)\n"
+            "        if not np.all(np.isnan(y[k])):\n            x, P = kf_update(x, P, y[k], G, R)")
 
 MUTANTS = [
     # --- cv_process_noise: cv_matrices(T, sigma_a) -> (F, Q) -------------------------------
-    Edit("cv_process_noise", Q, "Q = sigma_a * G @ G.T",
-         keyword="square it", mistake="σ_a not squared (the exercise's stub)"),
-    Edit("cv_process_noise", Q, "Q = sigma_a**4 * G @ G.T",
+    Edit("cv_process_noise", f"{NOISE_JACOBIAN}\n    {Q}", "Q = sigma_a**2 * np.eye(2 * dim)",
+         keyword="process-noise Jacobian B",
+         mistake="Q = σ_a² I, the acceleration's variance put on the state (the stub)"),
+    Edit("cv_process_noise", Q, "Q = B @ (sigma_a * I) @ B.T",
+         keyword="square it", mistake="σ_a not squared"),
+    Edit("cv_process_noise", Q, "Q = B @ (sigma_a**4 * I) @ B.T",
          keyword="squared twice", mistake="σ_a squared twice"),
-    Edit("cv_process_noise", Q, "Q = sigma_a**2 * G.T @ G",
-         keyword="Gᵀ G", mistake="Gᵀ G (3, 3) instead of G Gᵀ (6, 6)"),
-    Edit("cv_process_noise", GAMMA, "G = np.vstack([T * I, 0.5 * T**2 * I])",
-         keyword="swapped", mistake="the blocks of G swapped"),
-    Edit("cv_process_noise", GAMMA, "G = np.vstack([T**2 * I, T * I])",
-         keyword="T²/2", mistake="½ missing in the position block of G"),
-    Edit("cv_process_noise", GAMMA, "G = np.vstack([0.5 * T * I, T * I])",
-         keyword="T²/2", mistake="T instead of T² in the position block of G"),
-    Edit("cv_process_noise", GAMMA, "G = np.vstack([0.5 * T**2 * I, I])",
-         keyword="block of G", mistake="T missing in the velocity block of G"),
-    Edit("cv_process_noise", GAMMA, "G = np.vstack([0.5 * I, I])",
-         keyword="time step", mistake="G written for T = 1"),
-    Edit("cv_process_noise", Q, "Q = sigma_a**2 * np.diag(np.diag(G @ G.T))",
-         keyword="cross terms", mistake="only the diagonal of G Gᵀ"),
-    Edit("cv_process_noise", Q, "Q = sigma_a**2 * np.eye(2 * dim)",
-         keyword="through G", mistake="Q = σ_a² I"),
+    Edit("cv_process_noise", Q, "Q = sigma_a**2 * B.T @ B",
+         keyword="Bᵀ B", mistake="Bᵀ B (3, 3) instead of B Bᵀ (6, 6)"),
+    Edit("cv_process_noise", Q, "Q = B @ (sigma_a**2 * np.eye(2 * dim)) @ B.T",
+         keyword="(3, 3)", mistake="the acceleration's covariance written (6, 6) (a shape error)"),
+    Edit("cv_process_noise", NOISE_JACOBIAN, "B = np.hstack([0.5 * T**2 * I, T * I])",
+         keyword="(6, 3)", mistake="B built side by side, (3, 6) (a shape error)"),
+    Edit("cv_process_noise", NOISE_JACOBIAN, "B = np.vstack([T * I, 0.5 * T**2 * I])",
+         keyword="swapped", mistake="the blocks of B swapped"),
+    Edit("cv_process_noise", NOISE_JACOBIAN, "B = np.vstack([T**2 * I, T * I])",
+         keyword="T²/2", mistake="½ missing in the position block of B"),
+    Edit("cv_process_noise", NOISE_JACOBIAN, "B = np.vstack([0.5 * T * I, T * I])",
+         keyword="T²/2", mistake="T instead of T² in the position block of B"),
+    Edit("cv_process_noise", NOISE_JACOBIAN, "B = np.vstack([0.5 * T**2 * I, I])",
+         keyword="block of B", mistake="T missing in the velocity block of B"),
+    Edit("cv_process_noise", NOISE_JACOBIAN, "B = np.vstack([0.5 * I, I])",
+         keyword="time step", mistake="B written for T = 1"),
+    Edit("cv_process_noise", Q, "Q = sigma_a**2 * np.diag(np.diag(B @ B.T))",
+         keyword="cross terms", mistake="only the diagonal of B Bᵀ"),
     Edit("cv_process_noise", Q,
          "Q = sigma_a**2 * np.block([[T**3 / 3 * I, T**2 / 2 * I], [T**2 / 2 * I, T * I]])",
          keyword="continuous", mistake="the continuous-white-noise Q"),
@@ -66,8 +80,11 @@ MUTANTS = [
          keyword="order (F, Q)", mistake="(Q, F) returned"),
 
     # --- kf_predict ------------------------------------------------------------------------
+    Edit("kf_predict", PRED_P, "P_check = F @ (P_hat + Q) @ F.T",
+         keyword="propagated through F", mistake="Q added before the propagation, so propagated "
+                                                "through F (the stub)"),
     Edit("kf_predict", PRED_P, "P_check = F @ P_hat @ F.T",
-         keyword="process noise", mistake="Q left out of the prediction (the stub)"),
+         keyword="process noise", mistake="Q left out of the prediction"),
     Edit("kf_predict", PRED_P, "P_check = F @ P_hat @ F + Q",
          keyword="transpose", mistake="F P̂ F + Q"),
     Edit("kf_predict", PRED_P, "P_check = F.T @ P_hat @ F + Q",
@@ -80,8 +97,8 @@ MUTANTS = [
          keyword="P̌ equals P̂", mistake="the covariance not predicted at all"),
     Edit("kf_predict", PRED_P, "P_check = F @ P_hat + Q",
          keyword="Fᵀ is missing", mistake="F P̂ + Q"),
-    Edit("kf_predict", PRED_P, "P_check = F @ (P_hat + Q) @ F.T",
-         keyword="added after the propagation", mistake="Q propagated through F"),
+    Edit("kf_predict", PRED_P, "P_check = F @ P_hat @ F.T + F @ Q @ F.T",
+         keyword="propagated through F", mistake="Q propagated through F, as a second term"),
     Edit("kf_predict", PRED_P, "P_check = F * P_hat * F.T + Q",
          keyword="element-wise", mistake="* instead of @"),
     Edit("kf_predict", PRED_P, "P_check = F @ P_hat @ F.T + np.sqrt(Q)",
@@ -100,8 +117,14 @@ MUTANTS = [
          keyword="in the order", mistake="(P̌, x̌) returned"),
 
     # --- kf_gain ---------------------------------------------------------------------------
+    Edit("kf_gain", f"{S}\n    {K}", "S = R\n    K = np.linalg.solve(S, G @ P_check)",
+         keyword="leaves out the prior", mistake="S = R, and Kᵀ from a solve (the stub)"),
+    Edit("kf_gain", S, "S = R",
+         keyword="leaves out the prior", mistake="S = R: the prior's uncertainty left out"),
+    Edit("kf_gain", K, "K = np.linalg.solve(S, G @ P_check)",
+         keyword="which is Kᵀ", mistake="solve(S, G P̌) = S⁻¹ G P̌ = Kᵀ returned as K"),
     Edit("kf_gain", K, "K = P_check @ G.T @ np.linalg.inv(R)",
-         keyword="R⁻¹", mistake="R⁻¹ instead of S⁻¹ (the stub)"),
+         keyword="R⁻¹", mistake="R⁻¹ instead of S⁻¹"),
     Edit("kf_gain", S, "S = G @ P_check @ G.T",
          keyword="noise is missing", mistake="R missing in S"),
     Edit("kf_gain", S, "S = G @ P_check @ G.T + np.sqrt(R)",
@@ -136,8 +159,14 @@ MUTANTS = [
          keyword="in the order", mistake="(S, K) returned"),
 
     # --- kf_update -------------------------------------------------------------------------
+    Edit("kf_update", UPDATE_STEP, "x_hat, P_hat = x_check, P_check",
+         keyword="the measurement y was not used", mistake="the prior returned unchanged (the stub)"),
+    Edit("kf_update", INNOV, "innovation = y - x_check[:len(y)]",
+         keyword="measurement space", mistake="predicted measurement x̌[:m] instead of G x̌"),
+    Edit("kf_update", I_KG, "I_KG = np.eye(len(y)) - K @ G",
+         keyword="I − K G is (n, n)", mistake="I of the measurement's size (a shape error)"),
     Edit("kf_update", INNOV, "innovation = G @ x_check - y",
-         keyword="sign", mistake="innovation G x̌ − y (the stub)"),
+         keyword="sign", mistake="innovation G x̌ − y"),
     Edit("kf_update", XHAT, "x_hat = x_check - K @ innovation",
          keyword="sign", mistake="correction subtracted"),
     Edit("kf_update", INNOV, "innovation = y",
@@ -145,7 +174,7 @@ MUTANTS = [
     Edit("kf_update", XHAT, "x_hat = x_check",
          keyword="equals the prior", mistake="mean not updated"),
     Edit("kf_update", JOSEPH, "P_hat = I_KG @ P_check @ I_KG.T",
-         keyword="second term", mistake="Joseph form without K R Kᵀ (the stub)"),
+         keyword="second term", mistake="Joseph form without K R Kᵀ"),
     Edit("kf_update", JOSEPH, "P_hat = I_KG @ P_check @ I_KG.T + K @ K.T",
          keyword="not K Kᵀ", mistake="Joseph form with K Kᵀ"),
     Edit("kf_update", JOSEPH, "P_hat = I_KG @ P_check @ I_KG.T + K @ np.linalg.inv(R) @ K.T",
@@ -174,7 +203,7 @@ MUTANTS = [
          keyword="with S, not R", mistake="P̌ − K R Kᵀ"),
     Edit("kf_update", JOSEPH, "P_hat = I_KG @ P_check @ I_KG.T + K.T @ R @ K",
          keyword="shapes", mistake="Kᵀ R K (a shape error)"),
-    Edit("kf_update", "I_KG = np.eye(len(x_check)) - K @ G", "I_KG = np.eye(len(x_check)) - G @ K",
+    Edit("kf_update", I_KG, "I_KG = np.eye(len(x_check)) - G @ K",
          keyword="shapes", mistake="I − G K (a shape error)", cell="update"),
     Edit("kf_update", "return x_hat, 0.5 * (P_hat + P_hat.T)", "return 0.5 * (P_hat + P_hat.T), x_hat",
          keyword="in the order", mistake="(P̂, x̂) returned"),
@@ -232,9 +261,18 @@ MUTANTS = [
     Edit("gnss_kf_run", LOOP, "for k in range(1, len(t) - 1):", cell="run",
          keyword="one row per fix", mistake="last fix skipped"),
     Edit("gnss_kf_run", STORE, "x, P = kf_update(x, P, y[0], G, R)\n    xs, Ps = [x], [P]", cell="run",
-         keyword="counts twice", mistake="the first fix used twice"),
+         keyword="counts twice", mistake="the first fix used twice: the prior, then updated with it"),
+    Edit("gnss_kf_run",
+         "xs, Ps = [x], [P]\n    for k in range(1, len(t)):\n"
+         "        F, Q = cv_matrices(t[k] - t[k - 1], sigma_a)\n        x, P = kf_predict(x, P, F, Q)\n",
+         "xs, Ps = [], []\n    for k in range(len(t)):\n        if k > 0:\n"
+         "            F, Q = cv_matrices(t[k] - t[k - 1], sigma_a)\n"
+         "            x, P = kf_predict(x, P, F, Q)\n", cell="run",
+         keyword="counts twice",
+         mistake="the first fix used twice: step 0 updates its prior (the first fix) with y[0], "
+                 "as kf.run_kf's convention does"),
     # upstream mistakes: a correct run_gnss_kf calls a wrong step function
-    Edit("gnss_kf_run", Q, "Q = sigma_a * G @ G.T", cell="cv",
+    Edit("gnss_kf_run", Q, "Q = B @ (sigma_a * I) @ B.T", cell="cv",
          keyword="fix cv_matrices first", mistake="cv_matrices does not square σ_a"),
     Edit("gnss_kf_run", PRED_P, "P_check = F @ P_hat @ F.T", cell="predict",
          keyword="fix kf_predict first", mistake="kf_predict without Q"),
@@ -242,18 +280,67 @@ MUTANTS = [
          keyword="fix kf_gain first", mistake="kf_gain with R⁻¹"),
     Edit("gnss_kf_run", JOSEPH, "P_hat = I_KG @ P_check @ I_KG.T + K @ K.T", cell="update",
          keyword="fix kf_update first", mistake="kf_update's Joseph form with K Kᵀ"),
+
+    # --- gnss_kf_gaps (the challenge): run_gnss_kf_gaps with NaN rows for missing fixes ------
+    Edit("gnss_kf_gaps", GAP_STEP,
+         "if np.all(np.isnan(y[k])):\n            xs.append(x)\n            Ps.append(P)\n"
+         "            continue\n        F, Q = cv_matrices(t[k] - t[k - 1], sigma_a)\n"
+         "        x, P = kf_predict(x, P, F, Q)\n        x, P = kf_update(x, P, y[k], G, R)",
+         keyword="skipped the prediction",
+         mistake="at a missing fix the last posterior stored, no prediction (the stub)"),
+    Edit("gnss_kf_gaps",
+         "        if not np.all(np.isnan(y[k])):\n            x, P = kf_update(x, P, y[k], G, R)",
+         "        x, P = kf_update(x, P, y[k], G, R)",
+         keyword="makes the state NaN", mistake="updated with the NaN of a missing fix"),
+    Edit("gnss_kf_gaps",
+         "        if not np.all(np.isnan(y[k])):\n            x, P = kf_update(x, P, y[k], G, R)",
+         "        if np.all(np.isnan(y[k])):\n            continue\n"
+         "        x, P = kf_update(x, P, y[k], G, R)",
+         keyword="one row per time", mistake="no row stored at a missing fix"),
+    Edit("gnss_kf_gaps",
+         "        if not np.all(np.isnan(y[k])):\n            x, P = kf_update(x, P, y[k], G, R)",
+         "        y_k = G @ x if np.all(np.isnan(y[k])) else y[k]\n"
+         "        x, P = kf_update(x, P, y_k, G, R)",
+         keyword="no measurement", mistake="the predicted position used as the missing fix"),
+    Edit("gnss_kf_gaps", "    xs, Ps = [x], [P]\n    for k",
+         "    y = np.array(y)\n    for j in range(1, len(y)):\n        if np.all(np.isnan(y[j])):\n"
+         "            y[j] = y[j - 1]\n    xs, Ps = [x], [P]\n    for k",
+         keyword="last fix received", mistake="the last fix repeated where one is missing"),
+    Edit("gnss_kf_gaps", "    xs, Ps = [x], [P]\n    for k",
+         "    y = np.nan_to_num(y)\n    xs, Ps = [x], [P]\n    for k",
+         keyword="origin", mistake="NaN replaced by 0 (np.nan_to_num)"),
+    Edit("gnss_kf_gaps", "    xs, Ps = [x], [P]\n    for k in range(1, len(t)):\n        # BEGIN SOLUTION "
+         "gnss_kf_gaps\n        " + GAP_STEP,
+         "    xs, Ps = [x], [P]\n    t_last = t[0]\n    for k in range(1, len(t)):\n"
+         "        if np.all(np.isnan(y[k])):\n            xs.append(x)\n            Ps.append(P)\n"
+         "            continue\n        F, Q = cv_matrices(t[k] - t_last, sigma_a)\n        t_last = t[k]\n"
+         "        x, P = kf_predict(x, P, F, Q)\n        x, P = kf_update(x, P, y[k], G, R)",
+         keyword="whole gap",
+         mistake="last posterior stored at a missing fix, the next fix predicts over the whole gap"),
+    Edit("gnss_kf_gaps", "F, Q = cv_matrices(t[k] - t[k - 1], sigma_a)\n        x, P = kf_predict",
+         "F, Q = cv_matrices(1.0, sigma_a)\n        x, P = kf_predict",
+         keyword="own time step", mistake="a fixed step of 1 s (the fixes are not exactly 1 s apart)"),
+    Edit("gnss_kf_gaps", "    P = np.diag(np.r_[np.full(3, sigma_gnss**2), np.full(3, sigma_v0**2)])",
+         "    P = np.diag(np.r_[np.full(3, sigma_gnss**2), np.full(3, 1e-4)])",
+         keyword="initial velocity variance", mistake="the exercise's stubbed P₀ copied over"),
+    # an upstream mistake: a correct run_gnss_kf_gaps calls a wrong kf_update
+    Edit("gnss_kf_gaps", JOSEPH, "P_hat = I_KG @ P_check @ I_KG.T", cell="update",
+         keyword="fix kf_update first", mistake="kf_update's Joseph form without K R Kᵀ"),
 ]
 
 EQUIVALENTS = [
     # cv_process_noise
-    Edit("cv_process_noise", Q, "Q = (sigma_a * G) @ (sigma_a * G).T",
-         mistake="σ_a folded into G"),
+    Edit("cv_process_noise", Q, "Q = (sigma_a * B) @ (sigma_a * B).T",
+         mistake="σ_a folded into B"),
+    Edit("cv_process_noise", Q, "Q = sigma_a**2 * B @ B.T", mistake="σ_a² in front of B Bᵀ"),
     Edit("cv_process_noise", Q, "Q = sigma_a**2 * np.block([[T**4 / 4 * I, T**3 / 2 * I], "
          "[T**3 / 2 * I, T**2 * I]])", mistake="Q written out block by block"),
     Edit("cv_process_noise", Q, "Q = np.kron(sigma_a**2 * np.array([[T**4 / 4, T**3 / 2], "
          "[T**3 / 2, T**2]]), I)", mistake="Q by a Kronecker product"),
-    Edit("cv_process_noise", Q, "Q = G @ (sigma_a**2 * np.eye(dim)) @ G.T",
-         mistake="Q = G Q_a Gᵀ with Q_a = σ_a² I"),
+    Edit("cv_process_noise", f"{NOISE_JACOBIAN}\n    {Q}",
+         "Q_a = sigma_a**2 * np.eye(dim)  # the acceleration's covariance\n"
+         "    B = np.block([[T**2 / 2 * I], [T * I]])\n    Q = np.linalg.multi_dot([B, Q_a, B.T])",
+         mistake="B by np.block, Q = B Q_a Bᵀ by multi_dot"),
     Edit("cv_process_noise", "return F, Q", "return [F, Q]", mistake="a list returned"),
     # kf_predict
     Edit("kf_predict", PRED_P, "P_check = np.linalg.multi_dot([F, P_hat, F.T]) + Q",
@@ -285,10 +372,20 @@ EQUIVALENTS = [
          "P_hat = np.linalg.multi_dot([I_KG, P_check, I_KG.T]) + np.linalg.multi_dot([K, R, K.T])",
          mistake="Joseph form with multi_dot"),
     Edit("kf_update", XHAT, "x_hat = x_check + np.dot(K, innovation)", mistake="np.dot"),
-    Edit("kf_update", JOSEPH + "\n    # STUB\n    # P_hat = I_KG @ P_check @ I_KG.T  # fix this\n"
-         "    # END SOLUTION\n    " + RET_UPDATE,
-         "P_hat = I_KG @ P_check\n    return x_hat, P_hat",
+    Edit("kf_update", UPDATE_STEP + "\n    # STUB\n"
+         "    # # fix this: correct the prior mean and covariance with the measurement y\n"
+         "    # # (the covariance in Joseph form); this placeholder ignores y\n"
+         "    # x_hat, P_hat = x_check, P_check\n    # END SOLUTION\n    " + RET_UPDATE,
+         f"{INNOV}\n    {XHAT}\n    P_hat = ({I_KG[7:]}) @ P_check\n    return x_hat, P_hat",
          mistake="short form, not symmetrised (asymmetric by round-off only)"),
+    Edit("kf_update", UPDATE_STEP,
+         "x_hat = x_check + K @ (y - G @ x_check)\n    P_hat = P_check - K @ S @ K.T",
+         mistake="the whole update in two lines, P̌ − K S Kᵀ"),
+    Edit("kf_update", UPDATE_STEP,
+         "innovation = y - G @ x_check\n    x_hat = x_check + K @ innovation\n"
+         "    A = np.eye(len(x_check)) - K @ G\n"
+         "    P_hat = np.linalg.multi_dot([A, P_check, A.T]) + np.linalg.multi_dot([K, R, K.T])",
+         mistake="the whole update with multi_dot"),
     Edit("kf_update", "K, S = kf_gain(P_check, G, R)",
          "S = G @ P_check @ G.T + R\n    K = np.linalg.solve(S, G @ P_check).T", cell="update",
          mistake="the gain computed inside kf_update"),
@@ -320,6 +417,22 @@ EQUIVALENTS = [
     # a correct variant of an upstream function: the run must still pass
     Edit("gnss_kf_run", JOSEPH, "P_hat = I_KG @ P_check", cell="update",
          mistake="kf_update in the short form"),
+    # gnss_kf_gaps
+    Edit("gnss_kf_gaps", "        if not np.all(np.isnan(y[k])):",
+         "        if np.all(np.isfinite(y[k])):", mistake="a fix is a finite row"),
+    Edit("gnss_kf_gaps", "    xs, Ps = [x], [P]\n    for k in range(1, len(t)):\n        # BEGIN SOLUTION "
+         "gnss_kf_gaps\n        " + GAP_STEP,
+         "    has_fix = ~np.isnan(y).all(axis=1)\n    xs, Ps = [x], [P]\n    for k in range(1, len(t)):\n"
+         "        F, Q = cv_matrices(t[k] - t[k - 1], sigma_a)\n        x, P = kf_predict(x, P, F, Q)\n"
+         "        if has_fix[k]:\n            x, P = kf_update(x, P, y[k], G, R)",
+         mistake="a mask of the fixes, computed once"),
+    Edit("gnss_kf_gaps", GAP_STEP,
+         "x, P = kf_predict(x, P, *cv_matrices(t[k] - t[k - 1], sigma_a))\n"
+         "        if np.isnan(y[k]).any():\n            pass  # no fix: the posterior is the prior\n"
+         "        else:\n            x, P = kf_update(x, P, y[k], G, R)",
+         mistake="the update in an else branch"),
+    Edit("gnss_kf_gaps", "return np.array(xs), np.array(Ps)", "return np.stack(xs), np.stack(Ps)",
+         mistake="np.stack"),
 ]
 
 EQUIVALENT_MUTANTS = [
@@ -332,8 +445,9 @@ EQUIVALENT_MUTANTS = [
                reason="P̌ is exactly symmetric in every case (and every covariance is)"),
     Equivalent("kf_gain", K, "K = P_check @ G.T @ np.linalg.inv(S).T",
                reason="S is symmetric to round-off, so is S⁻¹"),
-    Equivalent("cv_process_noise", Q, "Q = sigma_a**2 * G @ G.T\n    Q = 0.5 * (Q + Q.T)",
-               reason="G Gᵀ is exactly symmetric: symmetrising it changes nothing"),
+    Equivalent("cv_process_noise", Q, "Q = B @ (sigma_a**2 * I) @ B.T\n    Q = 0.5 * (Q + Q.T)",
+               reason="B (σ_a² I) Bᵀ is symmetric to round-off: symmetrising it changes nothing "
+                      "the check can see"),
     Equivalent("kf_predict", PRED_P, "P_check = F @ P_hat.T @ F.T + Q",
                reason="P̂ is exactly symmetric in every case (and every covariance is)"),
 ]

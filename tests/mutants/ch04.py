@@ -1,11 +1,14 @@
-"""Chapter 04 (motion models): plausible mistakes in the CTRV step and its Jacobian.
+"""Chapter 04 (motion models): plausible mistakes in the CTRV step, its Jacobian and (the
+challenge) its process noise.
 
 The step's solution switches from the closed form to the ω-series at the lecture's
-|ω T| = symbolic.OMEGA_SERIES_THRESHOLD; the Jacobian differentiates both branches by
-SymPy. Mistakes cover the formulas (signs, order of the sines and cosines, sin/cos, the
-heading update, the identity, transposition, the point of linearisation) and the ω → 0
-handling (no limit, `omega != 0`, a switch too close to 0 for the Jacobian, the straight
-line or a short series too far from 0).
+|ω T| = symbolic.OMEGA_SERIES_THRESHOLD (the whole switch is the exercise's fix region); the
+Jacobian differentiates both branches by SymPy. Mistakes cover the formulas (signs, order
+of the sines and cosines, sin/cos, the heading update, the identity, transposition, the
+point of linearisation) and the ω → 0 handling (no limit, `omega != 0`, a switch too close
+to 0 for the Jacobian, the straight line or a short series too far from 0); for the process
+noise, the frame ν_a pushes in, the heading it pushes along, T vs T²/2, σ vs σ² and the
+cross terms. Each stub of the exercise is a mutant here too, marked "(the stub)".
 """
 
 from mutation_harness import Edit, Equivalent
@@ -20,8 +23,21 @@ SWITCH = "    if abs(omega * T) > OMEGA_T_SWITCH:"
 SERIES_XY = ("px_new = px + c @ np.cos(psi + K * np.pi / 2)\n"
              "        py_new = py + c @ np.sin(psi + K * np.pi / 2)")
 RETURN = "return np.array([px_new, py_new, v, psi + omega * T, omega])"
+# the whole step's fix region (the switch and both branches), which the stub replaces
+STEP_REGION = (SWITCH + CLOSED_PX + CLOSED_PY + "\n    else:\n"
+               "        # the omega -> 0 limit: v T sum_k (omega T)^k / (k+1)! (cos, sin)(psi + k pi/2)\n"
+               "        c = v * T * (omega * T) ** K / np.cumprod(K + 1)\n        " + SERIES_XY)
 JAC_SELECT = "    F_numeric = F_turn_numeric if abs(om_ * T) > OMEGA_T_SWITCH else F_series_numeric"
 JAC_RETURN = "    return np.array(F_numeric(px_, py_, v_, psi_, om_, T), dtype=float)"
+# from the switch of ctrv_jacobian to its return, with the fix region's stub in between
+JAC_TAIL = (JAC_SELECT + "\n    # STUB\n    # F_numeric = F_turn_numeric if om_ != 0 else F_series_numeric"
+            "  # fix this: where is the closed form's Jacobian accurate?\n    # END SOLUTION\n" + JAC_RETURN)
+# the challenge: ctrv_process_noise's B and Q
+NOISE_B_POS = ("B = np.array([[0.5 * T**2 * np.cos(psi), 0.0],\n"
+               "                  [0.5 * T**2 * np.sin(psi), 0.0],")
+NOISE_B = (NOISE_B_POS + "\n                  [T, 0.0],\n                  [0.0, 0.5 * T**2],\n"
+           "                  [0.0, T]])")
+NOISE_Q = "Q = B @ np.diag([sigma_a**2, sigma_yaw**2]) @ B.T"
 
 # the former solution's hand-typed Jacobian of the straight line (first order in ω)
 FIRST_ORDER = """    F = np.eye(5)
@@ -50,9 +66,12 @@ def _finite_difference(h: str, central: bool) -> str:
 
 
 MUTANTS = [
+    # ---- ctrv_step: the whole step
+    Edit("ctrv_step", STEP_REGION, "    px_new = px + v * T * np.cos(psi)\n    py_new = py + v * T * np.sin(psi)",
+         keyword="the car turns", mistake="the straight line along the initial heading at every ω (the stub)"),
     # ---- ctrv_step: the closed form
     Edit("ctrv_step", CLOSED_PY, "\n        py_new = py + v / omega * (np.cos(psi + omega * T) - np.cos(psi))",
-         keyword="order of the cosines", mistake="p_y's cosines in the wrong order (the exercise's stub)"),
+         keyword="order of the cosines", mistake="p_y's cosines in the wrong order"),
     Edit("ctrv_step", CLOSED_PX, "\n        px_new = px + v / omega * (np.sin(psi) - np.sin(psi + omega * T))",
          keyword="order of the sines", mistake="p_x's sines in the wrong order"),
     Edit("ctrv_step", CLOSED_PX + CLOSED_PY,
@@ -93,7 +112,7 @@ MUTANTS = [
          "px_new = px + c @ np.cos(psi - K * np.pi / 2)", keyword="series",
          mistake="series of p_x with the phase k π/2 subtracted"),
     Edit("ctrv_step", SERIES_XY, "px_new = px + v * T\n        py_new = py", keyword="heading is missing",
-         mistake="straight line along the x axis, heading ignored (the exercise's stub)"),
+         mistake="straight line along the x axis, heading ignored"),
     Edit("ctrv_step", SERIES_XY,
          "px_new = px + c @ np.sin(psi + K * np.pi / 2)\n        py_new = py + c @ np.cos(psi + K * np.pi / 2)",
          keyword="swapped", mistake="series with sin and cos swapped"),
@@ -105,20 +124,18 @@ MUTANTS = [
 
     # ---- ctrv_jacobian: what SymPy differentiates
     Edit("ctrv_jacobian", "F_turn = f_turn.jacobian(state)\n", "F_turn = f_turn.jacobian(state[:4, :])\n",
-         keyword="all five", mistake="ω left out of the differentiation (the exercise's stub)"),
+         keyword="all five", mistake="ω left out of the differentiation"),
     Edit("ctrv_jacobian", "F_series = f_series.jacobian(state)\n",
          "F_series = f_series.subs(omega, 0).jacobian(state)\n", keyword="bends the path",
-         mistake="ω = 0 substituted before differentiating (the exercise's stub)"),
+         mistake="ω = 0 substituted before differentiating (the stub)"),
     Edit("ctrv_jacobian", "F_turn = f_turn.jacobian(state)\n", "F_turn = f_turn.jacobian(state) - sp.eye(5)\n",
          keyword="identity", mistake="Jacobian of the increment, identity missing"),
-    Edit("ctrv_jacobian", "py + v / omega * (sp.cos(psi) - sp.cos(psi + omega * T))",
-         "py + v / omega * (sp.cos(psi + omega * T) - sp.cos(psi))", keyword="cosines",
-         mistake="p_y's cosines in the wrong order in the SymPy model"),
-    Edit("ctrv_jacobian", "terms = [v * T * (omega * T) ** k / sp.factorial(k + 1) for k in K]",
-         "terms = [v * T * (omega * T) ** k / sp.factorial(k + 1) for k in K[:2]]", keyword="series",
+    Edit("ctrv_jacobian", "v * sp.sin(psi + omega * t)])", "-v * sp.sin(psi + omega * t)])",
+         keyword="p_y", mistake="p_y's velocity with the wrong sign in the SymPy model (clockwise ψ)"),
+    Edit("ctrv_jacobian", "sp.series(e, omega, 0, len(K))", "sp.series(e, omega, 0, 2)", keyword="series",
          mistake="Jacobian series cut after its first-order term"),
-    Edit("ctrv_jacobian", "psi + omega * T, omega])\n# the omega", "psi + omega, omega])\n# the omega",
-         keyword="∂ψ/∂ω = T", mistake="heading ψ + ω in the closed form (∂ψ/∂ω = 1)"),
+    Edit("ctrv_jacobian", "v, psi + omega * T, omega])", "v, psi + omega, omega])",
+         keyword="∂ψ/∂ω = T", mistake="heading ψ + ω in the SymPy model (∂ψ/∂ω = 1)"),
     # ---- ctrv_jacobian: the numeric function
     Edit("ctrv_jacobian", JAC_RETURN, "    return np.array(F_numeric(px_, py_, v_, psi_, om_, T), dtype=float).T",
          keyword="transposed", mistake="Jacobian transposed"),
@@ -132,16 +149,52 @@ MUTANTS = [
          mistake="no limit: SymPy's closed form at every ω (NaN at ω = 0)"),
     Edit("ctrv_jacobian", JAC_SELECT,
          "    F_numeric = F_turn_numeric if om_ != 0 else F_series_numeric", keyword="cancellation",
-         mistake="branch on omega != 0 (the closed form at ω = 1e-9, off by 4.5e2)"),
-    Edit("ctrv_jacobian", JAC_SELECT + "\n" + JAC_RETURN, _first_order_below("abs(om_) > 1e-6"),
+         mistake="branch on omega != 0 (the closed form at ω = 1e-9, off by 4.5e2) (the stub)"),
+    Edit("ctrv_jacobian", JAC_TAIL, _first_order_below("abs(om_) > 1e-6"),
          keyword="cancellation", mistake="the former solution: closed form above |ω| = 1e-6, straight line below"),
-    Edit("ctrv_jacobian", JAC_SELECT + "\n" + JAC_RETURN, _first_order_below("om_ != 0"),
+    Edit("ctrv_jacobian", JAC_TAIL, _first_order_below("om_ != 0"),
          keyword="cancellation", mistake="closed form for ω ≠ 0, the straight line's Jacobian at ω = 0"),
-    Edit("ctrv_jacobian", JAC_SELECT + "\n" + JAC_RETURN, _first_order_below("abs(om_ * T) > OMEGA_T_SWITCH"),
+    Edit("ctrv_jacobian", JAC_TAIL, _first_order_below("abs(om_ * T) > OMEGA_T_SWITCH"),
          keyword="straight line", mistake="the straight line's Jacobian below the lecture's switch"),
     Edit("ctrv_jacobian", JAC_SELECT,
          "    F_numeric = F_turn_numeric if abs(om_) > 1e-6 else F_series_numeric", keyword="cancellation",
          mistake="the former solution's switch |ω| > 1e-6 (series below): 1/ω² terms lose 8e-5 at T = 0.1 s"),
+
+    # ---- ctrv_process_noise (the challenge): B (5, 2) and Q = B diag(σ_a², σ_ψ̈²) Bᵀ
+    Edit("ctrv_process_noise", f"{NOISE_B}\n    {NOISE_Q}",
+         "Q = np.diag([0.0, 0.0, (sigma_a * T)**2, 0.0, (sigma_yaw * T)**2])",
+         keyword="speed and the turn rate only", mistake="noise on v and ω only (the stub)"),
+    Edit("ctrv_process_noise", NOISE_Q, "Q = np.diag(np.diag(B @ np.diag([sigma_a**2, sigma_yaw**2]) @ B.T))",
+         keyword="cross terms", mistake="only the diagonal of B Σ Bᵀ"),
+    Edit("ctrv_process_noise", NOISE_B_POS,
+         "B = np.array([[0.5 * T**2, 0.0],\n                  [0.0, 0.0],",
+         keyword="navigation frame", mistake="ν_a pushing along the x axis"),
+    Edit("ctrv_process_noise", NOISE_B_POS,
+         "B = np.array([[0.5 * T**2 * np.sin(psi), 0.0],\n                  [0.5 * T**2 * np.cos(psi), 0.0],",
+         keyword="swapped", mistake="cos ψ and sin ψ swapped"),
+    Edit("ctrv_process_noise", NOISE_B_POS,
+         "B = np.array([[0.5 * T**2 * np.cos(psi + omega * T), 0.0],\n"
+         "                  [0.5 * T**2 * np.sin(psi + omega * T), 0.0],",
+         keyword="start of the step", mistake="ν_a along the heading at the end of the step"),
+    Edit("ctrv_process_noise", NOISE_B_POS,
+         "B = np.array([[0.5 * T**2 * np.cos(psi + omega * T / 2), 0.0],\n"
+         "                  [0.5 * T**2 * np.sin(psi + omega * T / 2), 0.0],",
+         keyword="start of the step", mistake="ν_a along the heading at mid-step"),
+    Edit("ctrv_process_noise", NOISE_B,
+         "B = np.array([[T * np.cos(psi), 0.0],\n                  [T * np.sin(psi), 0.0],\n"
+         "                  [0.5 * T**2, 0.0],\n                  [0.0, T],\n                  [0.0, 0.5 * T**2]])",
+         keyword="T and T²/2 are swapped", mistake="T and T²/2 swapped in both columns"),
+    Edit("ctrv_process_noise", NOISE_B_POS,
+         "B = np.array([[T**2 * np.cos(psi), 0.0],\n                  [T**2 * np.sin(psi), 0.0],",
+         keyword="not T²", mistake="½ missing in the position rows (T² for T²/2)"),
+    Edit("ctrv_process_noise", NOISE_Q, "Q = B @ np.diag([sigma_a, sigma_yaw]) @ B.T",
+         keyword="standard deviations", mistake="σ not squared"),
+    Edit("ctrv_process_noise", NOISE_Q, "Q = B @ np.diag([sigma_yaw**2, sigma_a**2]) @ B.T",
+         keyword="variances are swapped", mistake="σ_a² and σ_ψ̈² swapped"),
+    Edit("ctrv_process_noise", NOISE_Q, "Q = B.T @ B * np.diag([sigma_a**2, sigma_yaw**2])",
+         keyword="(2, 2)", mistake="Bᵀ B Σ, (2, 2)"),
+    Edit("ctrv_process_noise", NOISE_Q, "Q = B.T @ np.diag([sigma_a**2, sigma_yaw**2]) @ B",
+         keyword="(5, 2)", mistake="Bᵀ Σ B (a shape error)"),
 ]
 
 EQUIVALENTS = [
@@ -176,20 +229,40 @@ EQUIVALENTS = [
          "return np.array([px_new, py_new, v, np.arctan2(np.sin(psi + omega * T), np.cos(psi + omega * T)), omega])",
          mistake="heading wrapped into (−π, π]"),
     # ---- ctrv_jacobian (tolerance: 2e-5 of each column's largest entry; see checks/motion.py)
-    Edit("ctrv_jacobian", JAC_SELECT + "\n" + JAC_RETURN, _finite_difference("1e-6", central=False),
+    Edit("ctrv_jacobian", JAC_TAIL, _finite_difference("1e-6", central=False),
          mistake="forward difference of ctrv_step, h = 1e-6 (errs ≤ 5e-7)"),
-    Edit("ctrv_jacobian", JAC_SELECT + "\n" + JAC_RETURN, _finite_difference("1e-8", central=False),
+    Edit("ctrv_jacobian", JAC_TAIL, _finite_difference("1e-8", central=False),
          mistake="forward difference, h = 1e-8 = √eps (round-off ≤ 9e-6 on 400 m positions)"),
-    Edit("ctrv_jacobian", JAC_SELECT + "\n" + JAC_RETURN, _finite_difference("1e-5", central=False),
+    Edit("ctrv_jacobian", JAC_TAIL, _finite_difference("1e-5", central=False),
          mistake="forward difference, h = 1e-5 (errs ≤ 5e-6)"),
-    Edit("ctrv_jacobian", JAC_SELECT + "\n" + JAC_RETURN, _finite_difference("1e-5", central=True),
+    Edit("ctrv_jacobian", JAC_TAIL, _finite_difference("1e-5", central=True),
          mistake="central difference, h = 1e-5"),
-    Edit("ctrv_jacobian", JAC_SELECT + "\n" + JAC_RETURN, _first_order_below("abs(om_ * T) > 1e-5"),
+    Edit("ctrv_jacobian", JAC_TAIL, _first_order_below("abs(om_ * T) > 1e-5"),
          mistake="the lecture's first-order (straight-line) Jacobian below |ω T| = 1e-5, where it errs ≤ 7e-6"),
     Edit("ctrv_jacobian", JAC_RETURN, "    return np.asarray(F_numeric(px_, py_, v_, psi_, om_, T)).tolist()",
          mistake="nested lists returned"),
     Edit("ctrv_jacobian", "F_series = f_series.jacobian(state)\n",
          "F_series = sp.simplify(f_series.jacobian(state))\n", mistake="simplified series Jacobian"),
+]
+
+EQUIVALENTS += [
+    # ---- ctrv_process_noise (tolerance: rtol 1e-7, atol 1e-12; see checks/motion.py)
+    Edit("ctrv_process_noise", NOISE_Q, "Q = (B * np.array([sigma_a, sigma_yaw])**2) @ B.T",
+         mistake="B Σ Bᵀ by broadcasting"),
+    Edit("ctrv_process_noise", NOISE_Q,
+         "Q = sigma_a**2 * np.outer(B[:, 0], B[:, 0]) + sigma_yaw**2 * np.outer(B[:, 1], B[:, 1])",
+         mistake="Q as a sum of the two noises' outer products"),
+    Edit("ctrv_process_noise", f"{NOISE_B}\n    {NOISE_Q}",
+         "nu_a, nu_yaw, t_ = sp.symbols('nu_a nu_yaw t_')\n"
+         "    psi_s, T_s = sp.symbols('psi_s T_s')\n"
+         "    shift = sp.Matrix([nu_a * t_**2 / 2 * sp.cos(psi_s), nu_a * t_**2 / 2 * sp.sin(psi_s),\n"
+         "                       nu_a * t_, nu_yaw * t_**2 / 2, nu_yaw * t_])\n"
+         "    B_s = shift.jacobian([nu_a, nu_yaw]).subs(t_, T_s)\n"
+         "    B = np.array(sp.lambdify((psi_s, T_s), B_s, modules='numpy')(psi, T), dtype=float)\n"
+         "    Q = B @ np.diag([sigma_a**2, sigma_yaw**2]) @ B.T",
+         mistake="B by SymPy from the noise's displacement"),
+    Edit("ctrv_process_noise", NOISE_Q, "Q = np.linalg.multi_dot([B, np.diag([sigma_a, sigma_yaw])**2, B.T])",
+         mistake="multi_dot, the diagonal squared"),
 ]
 
 EQUIVALENT_MUTANTS = [
