@@ -4,11 +4,18 @@ States come from KITTI ground truth (tilted attitudes, real IMU readings) with m
 non-zero biases. A wrong block matrix (F_t, B_t, the nominal-state A) is reported block by
 block, naming the block and, where the mistake is a known one (sign, transpose, frame,
 missing bias correction), the mistake. The whole run is compared with
-:func:`kalman_course.filters.eskf.run` on a 10 s slice of the turns excerpt; when it differs,
+:func:`kalman_course.filters.eskf.run` on a 5 s slice of the turns excerpt; when it differs,
 the check first grades the pieces the learner's run calls, then rebuilds the run from those
 pieces, so that the lecture's first-order forms (accepted by their own checks) are accepted
-in the run too, and a mistake made in the run itself (a dropped reset, σ for σ², the prior
-stored for the posterior, ...) is named.
+in the run too, and a mistake made in the run itself (a dropped reset, σ for σ², degrees
+for radians, no update at all, the prior stored for the posterior, ...) is named.
+
+The exercise's whole-step placeholders are recognised and named: a covariance returned
+unpropagated, a nominal state returned uninjected, a run that never uses its lidar poses, and
+(in the optional challenge) a finite-difference Jacobian left at zero. The accelerometer noise
+of the course's configuration is isotropic, so a B_t whose n_a block is left unrotated changes
+nothing in the filter; the noise-Jacobian check therefore also evaluates B Q Bᵀ with an
+anisotropic accelerometer (:data:`ANISOTROPIC_ACCEL`), where that mistake shows.
 
 Tolerances (and why)
 --------------------
@@ -23,6 +30,9 @@ Tolerances (and why)
   |δθ̂|² max|P[6:9]| (any G = I + ½[δθ̂]× + O(|δθ̂|²)); the sign mistake errs by |δθ̂| max|P[6:9]|.
 - Run: positions and rotations 1e-6, P 1e-3 relative, against the reference run or a run
   rebuilt from the learner's own (checked) pieces.
+- Challenge (finite-difference transition J): 1e-5 absolute against the check's own central
+  differences (h = 1e-6; round-off on positions of a few hundred metres is about 1e-7, a
+  one-sided difference errs by about 1e-8); every graded mistake errs by O(1) in some block.
 """
 
 from __future__ import annotations
@@ -46,6 +56,9 @@ from kalman_course.filters.eskf_config import load_config
 #: The whole-run check: excerpt and length of the slice (s).
 RUN_EXCERPT, RUN_SECONDS = "turns", 5.0
 DENSITY = np.array([0.03, 1e-3, 1.67e-4, 2.91e-6])
+#: Accelerometer white-noise densities per body axis (m/s²/√Hz) of an IMU whose vertical axis is
+#: noisier (vibration): with them, B Q Bᵀ shows whether n_a was rotated into the navigation frame.
+ANISOTROPIC_ACCEL = np.array([0.02, 0.03, 0.09])
 
 #: Rows / columns of the error state and of the noise vector: (name, start, stop).
 _ERR = (("δp", 0, 3), ("δv", 3, 6), ("δθ", 6, 9), ("δb_a", 9, 12), ("δb_ω", 12, 15))
@@ -69,19 +82,35 @@ def _cases(count: int = 4, seed: int = 8):
 
 
 def _error(nom, true):
+    """The error of ``nom`` with respect to ``true`` (15,), error = nominal − true, δθ in the body frame."""
     return np.concatenate([nom.position - true.position, nom.velocity - true.velocity,
                            so3.log(true.rotation.T @ nom.rotation),
                            nom.accel_bias - true.accel_bias, nom.gyro_bias - true.gyro_bias])
 
 
-def _fd_transition(x, f, w, T, g, h=1e-6):
-    x1 = eskf.nominal_step(x, f, w, f, w, T, g)
+def _error_nav_frame(nom, true):
+    """The same with the attitude error taken in the navigation frame, Log(Ř Rᵀ) (a graded mistake)."""
+    e = _error(nom, true)
+    e[6:9] = so3.log(nom.rotation @ true.rotation.T)
+    return e
+
+
+def _fd_transition(x, f, w, T, g, h=1e-6, error=_error, step_nominal=True, step_true=True):
+    """∂(error after one IMU step)/∂(error before it) at δx = 0, by central differences.
+
+    The true state with error d is ``inject(x, d)``; readings f, ω held over the step.
+    ``error`` and leaving the nominal or the true states unstepped build graded mistakes.
+    """
+    def step(state, stepped):
+        return eskf.nominal_step(state, f, w, f, w, T, g) if stepped else state
+
+    x1 = step(x, step_nominal)
     J = np.zeros((15, 15))
     for i in range(15):
         d = np.zeros(15)
         d[i] = h
-        J[:, i] = (_error(x1, eskf.nominal_step(eskf.inject(x, d), f, w, f, w, T, g))
-                   - _error(x1, eskf.nominal_step(eskf.inject(x, -d), f, w, f, w, T, g))) / (2 * h)
+        J[:, i] = (error(x1, step(eskf.inject(x, d), step_true))
+                   - error(x1, step(eskf.inject(x, -d), step_true))) / (2 * h)
     return J
 
 
@@ -190,6 +219,25 @@ def check_eskf_error_dynamics(error_dynamics):
 _B_FORMULAS = {("δv", "n_a"): "R", ("δθ", "n_ω"): "I", ("δb_a", "n_ba"): "I", ("δb_ω", "n_bω"): "I"}
 
 
+def _accel_noise_effect(block, R) -> str:
+    """What an unrotated n_a block does to B Q Bᵀ with an anisotropic accelerometer, in words.
+
+    ``block`` is the learner's (δv, n_a) block of B_t. With the course's isotropic density
+    σ² I, R σ² I Rᵀ = σ² I and the mistake is invisible in the filter; with different
+    densities per body axis (:data:`ANISOTROPIC_ACCEL`) the velocity-noise rate
+    block diag(σ²) blockᵀ differs from R diag(σ²) Rᵀ.
+    """
+    S = np.diag(ANISOTROPIC_ACCEL ** 2)
+    ref, got = R @ S @ R.T, block @ S @ block.T
+    rel = np.abs(got - ref).max() / np.abs(ref).max()
+    tilt = np.degrees(np.arccos(np.clip(R[2, 2], -1.0, 1.0)))
+    return (f"With this course's equal noise on the three accelerometer axes the mistake hides "
+            f"(R σ² I Rᵀ = σ² I), but for an accelerometer with σ_a = {tuple(ANISOTROPIC_ACCEL.tolist())} "
+            f"m/s²/√Hz per body axis, the velocity noise B Q Bᵀ would be off by {100 * rel:.0f} % here: each "
+            f"body axis's noise would land on the navigation axis of the same name, although this body is "
+            f"rotated (tilted by {tilt:.0f}°)")
+
+
 @check
 def check_eskf_noise_jacobian(noise_jacobian):
     """``noise_jacobian(R, bias_model)`` returns B_t (15, 12) or (15, 6)."""
@@ -207,8 +255,10 @@ def check_eskf_noise_jacobian(noise_jacobian):
                 continue
             alternatives = {
                 ("δv", "n_a"): [
-                    (np.eye(3), "n_a is accelerometer noise in the BODY frame; it enters δv̇ rotated: R n_a"),
-                    (R.T, "transpose: n_a enters δv̇ as R n_a (R = R_nb), not Rᵀ n_a"),
+                    (np.eye(3), "n_a is accelerometer noise in the BODY frame; it enters δv̇ rotated: R n_a. "
+                                + _accel_noise_effect(np.eye(3), R)),
+                    (R.T, "transpose: n_a enters δv̇ as R n_a (R = R_nb), not Rᵀ n_a. "
+                          + _accel_noise_effect(R.T, R)),
                     (-R, "sign: with error = nominal − true and f_m = f + n_a, δv̇ = … + R n_a (the lecture's "
                          "B_t has +R)"),
                 ],
@@ -285,6 +335,9 @@ def check_eskf_propagate(propagate_covariance):
         noise = B @ Q @ B.T
         half = F @ P @ F
         expect_close(got, ref, "P_check", rtol=1e-9, atol=1e-15, mistakes=[
+            (P, "P̌ equals P̂: the covariance was not propagated. Over a step the error is carried by the "
+                "transition F and the step's noise w (12 numbers, covariance Q) enters through B: "
+                "P̌ = F P̂ Fᵀ + B Q Bᵀ"),
             (F @ P @ F.T, "the process noise is missing: P̌ = F P̂ Fᵀ + B Q Bᵀ"),
             (0.5 * (half + half.T) + noise, "transpose: F P̂ Fᵀ, not F P̂ F"),
             (half + noise, "transpose: F P̂ Fᵀ, not F P̂ F"),
@@ -319,6 +372,11 @@ def check_eskf_pose_residual(pose_residual):
         dth = ref[3:]
         body = so3.log(x.rotation @ R_m.T)
         tol = _attitude_tolerance(dth)
+        if _close(got[:3], -ref[:3], 1e-12) and _close(got[3:], -dth, tol):
+            raise CheckFailed("y is the negative of the residual (both parts). Hint: sign: this is measurement "
+                              "minus prediction, the habit of the earlier chapters. Here error = nominal − true, "
+                              "and the residual must satisfy y ≈ G δx + n with G = POSE_G (blocks +I), so "
+                              "y = prediction − measurement: [p̌ − p_meas; Log(R_measᵀ Ř)]")
         expect_close(got[:3], ref[:3], "the position residual y[0:3]", atol=1e-12, mistakes=[
             (-ref[:3], "sign of the position residual: error = nominal − true, so "
                        "y = p̌ − p_meas (prediction minus measurement)"),
@@ -375,7 +433,9 @@ def check_eskf_gain(kalman_gain):
             root_R = np.sqrt(R)
         expect_close(got, ref, "K", rtol=1e-8, atol=1e-12, mistakes=[
             (PGt @ inv(GPGt), "S = G P Gᵀ + R: the observation noise R is missing"),
-            (PGt @ inv(R), "K = P Gᵀ S⁻¹ with S = G P Gᵀ + R, not R⁻¹"),
+            (PGt @ inv(R), "P Gᵀ R⁻¹ is the gain only when P is the POSTERIOR P̂ (it follows from the "
+                           "information form P̂⁻¹ = P̌⁻¹ + Gᵀ R⁻¹ G); kalman_gain is given the PRIOR P̌, so "
+                           "K = P̌ Gᵀ S⁻¹ with S = G P̌ Gᵀ + R"),
             (PGt @ inv(GPGt + root_R), "R holds variances: S = G P Gᵀ + R, not + √R"),
             (PGt @ inv(GPGt + R @ R), "R holds variances already: S = G P Gᵀ + R, not + R²"),
             (PGt @ inv(GPGt - R), "sign: S = G P Gᵀ + R"),
@@ -440,6 +500,12 @@ def check_eskf_inject(inject):
         for field in ("position", "velocity", "rotation", "accel_bias", "gyro_bias"):
             if not hasattr(got, field):
                 raise CheckFailed(f"inject must return a NominalState; the result has no {field!r}")
+        fields = ("position", "velocity", "rotation", "accel_bias", "gyro_bias")
+        if all(_close(getattr(got, name), getattr(nom, name), 0.0) for name in fields):
+            raise CheckFailed("the nominal state came back unchanged: the estimated error δx̂ was not used. "
+                              "Hint: inject removes δx̂ from every part of the nominal state (position, "
+                              "velocity, attitude and both biases), with the signs of error = nominal − true; "
+                              "the attitude must stay a rotation matrix (lecture 08 §4, Inject)")
         R = expect_shape(got.rotation, (3, 3), "rotation after injection")
         if not so3.is_rotation(R, tol=1e-9):
             raise CheckFailed("the rotation after injection is not orthonormal (RᵀR ≠ I). Hint: inject "
@@ -509,9 +575,10 @@ def check_eskf_reset(reset_covariance):
             continue
         sign, _ = sandwich(np.eye(3) - 0.5 * so3.hat(th))
         mistakes = [
-            (sign, "sign of the reset Jacobian (or Gᵀ P G for G P Gᵀ, or the right Jacobian J_r): for "
-                   "error = nominal − true, δθ⁺ ≈ δθ − δθ̂ + ½[δθ̂]× δθ, so its attitude block is "
-                   "J_l(δθ̂) ≈ I + ½[δθ̂]×"),
+            (sign, "sign of the reset Jacobian: I − ½[δθ̂]× is the reset of the opposite convention "
+                   "(true = nominal ⊕ error); for this course's error = nominal − true, "
+                   "δθ⁺ ≈ δθ − δθ̂ + ½[δθ̂]× δθ, so the attitude block is J_l(δθ̂) ≈ I + ½[δθ̂]× (the same "
+                   "wrong result comes from Gᵀ P G for G P Gᵀ, or from the right Jacobian J_r)"),
             (P, "the covariance is (to first order) unchanged; this exercise asks for the reset P ← G P Gᵀ "
                 "(with Gᵀ on the right: the symmetric part of G P G is P + O(|δθ̂|²))"),
             (symmetrise(G1 @ P), "P ← G P Gᵀ: the Gᵀ on the right is missing"),
@@ -544,6 +611,12 @@ _RUN_USES = {"error_dynamics": "eskf_error_dynamics", "noise_jacobian": "eskf_no
 
 #: Mistakes made in the run itself: flag -> (hint). Tried in this order by :func:`_diagnose_run`.
 _RUN_MISTAKES = (
+    ("no_update", "the posterior equals the prior: the lidar poses were never used. At each lidar time, "
+                  "compute the residual and the gain, the estimated error δx̂ = K y and P̂, inject δx̂ into "
+                  "the nominal state and reset P (lecture 08 §4)"),
+    ("R_deg", "units: the attitude part of the residual is in radians, so R must be too; 0.3 is the "
+              "attitude σ in DEGREES (cfg.describe() shows the settings with their units; cfg.lidar_std holds "
+              "the six σ in SI units, m and rad). R = diag(σ²) in the residual's units"),
     ("R_std", "the observation noise R holds variances: R = diag(σ²) of the lidar noise "
               "(cfg.lidar_std**2), not diag(σ)"),
     ("P0_std", "the prior covariance holds variances: P₀ = diag(σ₀²) (cfg.prior_std**2), not diag(σ₀)"),
@@ -602,6 +675,8 @@ def _drive(pieces: dict, ex, t_end: float, cfg, mistake: str | None = None):
     x = NominalState.from_nav(s0)
     P = np.diag(cfg.prior_std if mistake == "P0_std" else cfg.prior_std ** 2)
     R_noise = np.diag(cfg.lidar_std if mistake == "R_std" else cfg.lidar_std ** 2)
+    if mistake == "R_deg":        # the attitude σ taken in degrees as if it were radians
+        R_noise = np.diag(np.r_[cfg.lidar_std[:3], np.rad2deg(cfg.lidar_std[3:])] ** 2)
     g = -ex.gravity if mistake == "gravity_sign" else ex.gravity
     model = "constant" if mistake == "constant_bias" else "random_walk"
 
@@ -628,8 +703,11 @@ def _drive(pieces: dict, ex, t_end: float, cfg, mistake: str | None = None):
             if lidar.t[j] > t and mistake != "no_predict_to_obs":
                 x, P = predict(x, P, f, w, f_j, w_j, lidar.t[j] - t)
                 t, f, w = lidar.t[j], f_j, w_j
-            if mistake == "prior_out":
+            if mistake in ("prior_out", "no_update"):
                 out.append((t, x.position, x.rotation, P))
+                if mistake == "no_update":
+                    j += 1
+                    continue
             y = pc["pose_residual"](x.position, x.rotation, lidar.position[j], lidar.rotation[j])
             K = pc["kalman_gain"](P, eskf.POSE_G, R_noise)
             dx = -K @ y if mistake == "dx_sign" else K @ y
@@ -831,6 +909,11 @@ def check_nominal_ekf_jacobian(nominal_jacobian):
         ref = ne.continuous_jacobian(q, f, w, b_a, b_w)
         if _close(got, ref, 1e-10):
             continue
+        if not np.any(got[6:10]):
+            raise CheckFailed("the rows of q̇ in A (rows 6:10) are all zero. Hint: q̇ = ½ q ⊗ (0, ω − b_ω) "
+                              "is linear in q (as ½ Ω(ω − b_ω) q) and in ω − b_ω (as ½ Ξ(q)(ω − b_ω)): its "
+                              "derivatives with respect to q and to b_ω fill the blocks (q, q) and (q, b_ω); "
+                              "the rows of q are missing")
         R = so3.quat_to_matrix(q)
         alternatives = {
             ("v", "q"): [(ne.rotate_jacobian(q, f), "use the bias-corrected force: ∂(R(q)(f − b_a))/∂q"),
@@ -846,3 +929,60 @@ def check_nominal_ekf_jacobian(nominal_jacobian):
         }
         _expect_blocks(got, ref, _NOMINAL, _NOMINAL, "A", _A_FORMULAS, alternatives,
                        fallback="ṗ = v, v̇ = R(q)(f − b_a) + g, q̇ = ½ q ⊗ (0, ω − b_ω)")
+
+
+# ---------------------------------------------------------------------------------------
+# Challenge: the transition measured by finite differences (lecture 08 §2)
+# ---------------------------------------------------------------------------------------
+
+@check(uses={"inject": "eskf_inject"})
+def check_eskf_fd_transition(transition_by_finite_differences):
+    """``transition_by_finite_differences(x, f, w, T, g)`` returns J (15, 15).
+
+    J = ∂(error after one IMU step)/∂(error before it) at δx = 0, measured by differences;
+    compared with the check's own central differences (see the module notes for the
+    tolerance), and, when wrong, with the known mistakes and with F = I + F_t T.
+    """
+    g = np.array([0.0, 0.0, -9.8092])
+    T = 0.01
+    for x, f, w in _cases()[:2]:
+        got = expect_shape(call(transition_by_finite_differences, x, f, w, T, g), (15, 15), "J")
+        ref = _fd_transition(x, f, w, T, g)
+        if _close(got, ref, 1e-5):
+            continue
+        F = np.eye(15) + eskf.error_dynamics(x.rotation, f, w, x.accel_bias, x.gyro_bias) * T
+        mistakes = [
+            (np.zeros((15, 15)), "J is all zero: nothing was measured. For each of the 15 error components, "
+                                 "make true states with a small error ±h in that component only, step them "
+                                 "and the nominal state through the same IMU step, and difference the errors "
+                                 "after the step: that is column i of J"),
+            (-ref, "sign: with error = nominal − true, the true state with error d is the nominal state with "
+                   "d removed (inject(x, d)), and the error after the step is nominal − true again; a "
+                   "sign flipped in one of the two flips J"),
+            (_fd_transition(x, f, w, T, g, error=_error_nav_frame),
+             "the attitude error lives in the body frame: Ř = R Exp(δθ), so δθ = Log(Rᵀ Ř), not Log(Ř Rᵀ) "
+             "(the navigation-frame error)"),
+            (np.eye(15), "J = I: the errors were compared before the step; step the nominal state and each "
+                         "true state through nominal_step first"),
+            (_fd_transition(x, f, w, T, g, step_nominal=False),
+             "the nominal state was compared before the step: measure each stepped true state against the "
+             "nominal state after the same step (nominal_step(x, ...))"),
+            (_fd_transition(x, f, w, T, g, step_true=False),
+             "the true states were compared before the step: push each of them through the same IMU step "
+             "(nominal_step) as the nominal state"),
+            (2 * ref, "factor 2: a central difference divides by 2h (the perturbations are +h and −h)"),
+            (ref.T, "transposed: column i of J is the derivative with respect to the i-th error component "
+                    "before the step (J[:, i]), row i that of the i-th component after it"),
+            (F, "that is F = I + F_t T itself, not a measurement: J must come from nominal_step by "
+                "differences (it equals F only up to O(T²))"),
+        ]
+        for wrong, why in mistakes:
+            if _close(got, wrong, 1e-5):
+                raise CheckFailed(f"J is wrong. Hint: {why}")
+        err = np.abs(np.asarray(got, dtype=float) - ref).max()
+        off_F = np.abs(np.asarray(got, dtype=float) - F).max()
+        raise CheckFailed(f"J differs from a central-difference Jacobian of one IMU step by {err:.3g} "
+                          f"(and from F = I + F_t T by {off_F:.3g}, where O(T²) ≈ {T * T:.0e} is expected). "
+                          "Hint: column i: (error after the step of the true state with error +h e_i, minus "
+                          "that with −h e_i) / 2h, with error = nominal − true and the true state "
+                          "inject(x, ±h e_i)")

@@ -1,4 +1,10 @@
-"""Chapter 08 (the error-state Kalman filter): plausible mistakes in the exercise's functions."""
+"""Chapter 08 (the error-state Kalman filter): plausible mistakes in the exercise's functions.
+
+Every stub of ``solutions/08_eskf.ipynb`` is here as a mutant marked "(the stub)"; the
+whole-step placeholders (propagation, injection, the run's update, the bonus's quaternion rows,
+the challenge's finite differences) are followed by the mistakes a learner makes when writing
+those steps.
+"""
 
 from mutation_harness import Edit, Equivalent
 
@@ -6,11 +12,31 @@ NOTEBOOK = "08_eskf"
 
 _DV_DTH = "F[3:6, 6:9] = -R @ so3.hat(a)"
 _Q_BW = "A[6:10, 13:16] = -0.5 * quat_xi(q)"
+_FD_LOOP = ("    for i in range(15):\n        d = np.zeros(15)\n        d[i] = h\n"
+            "        plus = nominal_step(inject(x, d), f, w, f, w, T, g)\n"
+            "        minus = nominal_step(inject(x, -d), f, w, f, w, T, g)\n"
+            "        J[:, i] = (error_between(x_after, plus) - error_between(x_after, minus)) / (2 * h)")
+_Q_ROWS = "    A[6:10, 6:10] = 0.5 * quat_omega(w - b_w)\n    A[6:10, 13:16] = -0.5 * quat_xi(q)"
+#: the whole injection (the reference lines of its fix region)
+_INJECT = ("    p = x.position - dx[0:3]\n    v = x.velocity - dx[3:6]\n    R = x.rotation @ so3.Exp(-dx[6:9])\n"
+           "    b_a = x.accel_bias - dx[9:12]\n    b_w = x.gyro_bias - dx[12:15]\n"
+           "    return NominalState(p, v, R, b_a, b_w)")
+#: the whole update at a lidar time (the reference lines of the run's second fix region)
+_UPDATE = ("            y = pose_residual(x.position, x.rotation, lidar.position[j], lidar.rotation[j])\n"
+           "            K = kalman_gain(P, POSE_G, R_noise)\n"
+           "            dx = K @ y\n"
+           "            P = update_covariance(P, K, POSE_G, R_noise)\n"
+           "            x = inject(x, dx)\n"
+           "            P = reset_covariance(P, dx)\n")
+#: that region with its markers and stub, as in the solution cell
+_UPDATE_REGION = ("            # BEGIN SOLUTION eskf_run\n" + _UPDATE + "            # STUB\n"
+                  "            # pass  # fix this: use the pose to correct the nominal state and P, and leave the "
+                  "error at zero\n            # END SOLUTION\n")
 
 MUTANTS = [
     # ---- error_dynamics: F_t ----
     Edit("eskf_error_dynamics", _DV_DTH, "F[3:6, 6:9] = -so3.hat(R @ a)", keyword="BODY",
-         mistake="navigation-frame specific force −[R a]×"),
+         mistake="navigation-frame specific force −[R a]× (the stub)"),
     Edit("eskf_error_dynamics", _DV_DTH, "F[3:6, 6:9] = R @ so3.hat(a)", keyword="sign",
          mistake="+R[a]× (sign of the δv–δθ block)"),
     Edit("eskf_error_dynamics", _DV_DTH, "F[3:6, 6:9] = -R @ so3.hat(f)", keyword="bias-corrected",
@@ -39,7 +65,9 @@ MUTANTS = [
          mistake="δp–δv identity put in the transposed block position"),
     # ---- noise_jacobian: B_t ----
     Edit("eskf_noise_jacobian", "B[3:6, 0:3] = R", "B[3:6, 0:3] = np.eye(3)", keyword="BODY",
-         mistake="n_a not rotated to the navigation frame"),
+         mistake="n_a not rotated to the navigation frame (the stub)"),
+    Edit("eskf_noise_jacobian", "B[3:6, 0:3] = R", "B[3:6, 0:3] = np.eye(3)", keyword="would be off by",
+         mistake="n_a not rotated: the hint shows its effect on B Q Bᵀ with an anisotropic accelerometer"),
     Edit("eskf_noise_jacobian", "B[3:6, 0:3] = R", "B[3:6, 0:3] = R.T", keyword="transpose",
          mistake="Rᵀ n_a"),
     Edit("eskf_noise_jacobian", "B[3:6, 0:3] = R", "B[3:6, 0:3] = -R", keyword="sign", mistake="−R n_a"),
@@ -56,7 +84,7 @@ MUTANTS = [
          mistake="(15, 12) also for the constant-bias model"),
     # ---- discretise ----
     Edit("eskf_discretisation", "B[:, 6:] *= np.sqrt(T)", "B[:, 6:] *= T", keyword="√T",
-         mistake="random-walk columns scaled by T"),
+         mistake="random-walk columns scaled by T (the stub)"),
     Edit("eskf_discretisation", "B[:, 6:] *= np.sqrt(T)", "pass", keyword="√T",
          mistake="random-walk columns not scaled"),
     Edit("eskf_discretisation", "B[:, 6:] *= np.sqrt(T)", "B[:, 6:] /= np.sqrt(T)", keyword="divided",
@@ -77,7 +105,9 @@ MUTANTS = [
          "import scipy.linalg\n    F = scipy.linalg.expm(F_t * T)", keyword="first-order",
          mistake="matrix exponential instead of the lecture's first-order F (named in the hint)"),
     Edit("eskf_discretisation", "B = B_t.copy()", "B = -B_t.copy()", keyword="sign", mistake="B negated"),
-    # ---- propagate_covariance ----
+    # ---- propagate_covariance (a whole step: the placeholder returns P̂) ----
+    Edit("eskf_propagate", "P_check = F @ P @ F.T + B @ Q @ B.T", "P_check = P", keyword="not propagated",
+         mistake="P returned unchanged (the stub)"),
     Edit("eskf_propagate", "P_check = F @ P @ F.T + B @ Q @ B.T", "P_check = F @ P @ F.T",
          keyword="process noise", mistake="B Q Bᵀ left out"),
     Edit("eskf_propagate", "P_check = F @ P @ F.T + B @ Q @ B.T", "P_check = F @ P @ F + B @ Q @ B.T",
@@ -95,6 +125,9 @@ MUTANTS = [
     Edit("eskf_propagate", "P_check = F @ P @ F.T + B @ Q @ B.T",
          "P_check = F @ P @ F.T + B @ Q @ Q @ B.T", keyword="variances", mistake="Q squared"),
     # ---- pose_residual ----
+    Edit("eskf_pose_residual", "dp = p_check - p_meas\n    dtheta = so3.Log(R_meas.T @ R_check)",
+         "dp = p_meas - p_check\n    dtheta = so3.Log(R_check.T @ R_meas)", keyword="measurement minus prediction",
+         mistake="measurement − prediction in both parts, the KF habit (the stub)"),
     Edit("eskf_pose_residual", "dtheta = so3.Log(R_meas.T @ R_check)", "dtheta = so3.Log(R_check.T @ R_meas)",
          keyword="sign", mistake="Log(Řᵀ R_meas)"),
     Edit("eskf_pose_residual", "dp = p_check - p_meas", "dp = p_meas - p_check", keyword="sign",
@@ -115,8 +148,11 @@ MUTANTS = [
          mistake="the lecture's first-order form with the sign flipped"),
     # ---- kalman_gain ----
     Edit("eskf_gain", "S = G @ P @ G.T + R", "S = G @ P @ G.T", keyword="R is missing", mistake="S without R"),
+    Edit("eskf_gain", "    S = G @ P @ G.T + R\n    return P @ G.T @ np.linalg.inv(S)",
+         "    return P @ G.T @ np.linalg.inv(R)", keyword="POSTERIOR",
+         mistake="P Gᵀ R⁻¹, the posterior form, with the prior P̌ (the stub)"),
     Edit("eskf_gain", "return P @ G.T @ np.linalg.inv(S)", "return P @ G.T @ np.linalg.inv(R)", keyword="R⁻¹",
-         mistake="R⁻¹ instead of S⁻¹"),
+         mistake="R⁻¹ instead of S⁻¹ (S computed, unused)"),
     Edit("eskf_gain", "S = G @ P @ G.T + R", "S = G @ P @ G.T + np.sqrt(R)", keyword="variances",
          mistake="√R (standard deviations) in S"),
     Edit("eskf_gain", "S = G @ P @ G.T + R", "S = G @ P @ G.T + R @ R", keyword="variances", mistake="R² in S"),
@@ -131,7 +167,7 @@ MUTANTS = [
     Edit("eskf_covariance_update", "P_hat = I_KG @ P @ I_KG.T + K @ R @ K.T", "P_hat = I_KG @ P @ I_KG.T",
          keyword="K R Kᵀ", mistake="Joseph form without K R Kᵀ"),
     Edit("eskf_covariance_update", "P_hat = I_KG @ P @ I_KG.T + K @ R @ K.T", "P_hat = I_KG @ P",
-         keyword="optimal gain", mistake="short form (I − K G) P̌"),
+         keyword="optimal gain", mistake="short form (I − K G) P̌, right only for the optimal gain (the stub)"),
     Edit("eskf_covariance_update", "P_hat = I_KG @ P @ I_KG.T + K @ R @ K.T",
          "P_hat = I_KG.T @ P @ I_KG + K @ R @ K.T", keyword="transpose", mistake="(I − KG)ᵀ P (I − KG)"),
     Edit("eskf_covariance_update", "P_hat = I_KG @ P @ I_KG.T + K @ R @ K.T",
@@ -144,9 +180,15 @@ MUTANTS = [
          keyword="I − K G", mistake="I + K G"),
     Edit("eskf_covariance_update", "I_KG = np.eye(P.shape[0]) - K @ G", "I_KG = np.eye(P.shape[0]) - G.T @ K.T",
          keyword="transpose", mistake="(K G)ᵀ in I − K G"),
-    # ---- inject ----
+    # ---- inject (a whole step: the placeholder returns the nominal state) ----
+    Edit("eskf_inject", _INJECT, "    return x", keyword="unchanged",
+         mistake="nominal state returned unchanged (the stub)"),
+    Edit("eskf_inject", _INJECT,
+         "    return NominalState(x.position + dx[0:3], x.velocity + dx[3:6], x.rotation @ so3.Exp(dx[6:9]),\n"
+         "                        x.accel_bias + dx[9:12], x.gyro_bias + dx[12:15])",
+         keyword="sign", mistake="every block added: the convention true = nominal ⊕ error"),
     Edit("eskf_inject", "R = x.rotation @ so3.Exp(-dx[6:9])", "R = x.rotation @ (np.eye(3) - so3.hat(dx[6:9]))",
-         keyword="orthonormal", mistake="first-order injection, not re-orthonormalised (the stub)"),
+         keyword="orthonormal", mistake="first-order injection, not re-orthonormalised"),
     Edit("eskf_inject", "R = x.rotation @ so3.Exp(-dx[6:9])", "R = x.rotation @ so3.Exp(dx[6:9])",
          keyword="sign", mistake="Exp(+δθ)"),
     Edit("eskf_inject", "R = x.rotation @ so3.Exp(-dx[6:9])", "R = so3.Exp(-dx[6:9]) @ x.rotation",
@@ -158,6 +200,8 @@ MUTANTS = [
          keyword="dx[6:9]", mistake="wrong slice for δθ"),
     Edit("eskf_inject", "R = x.rotation @ so3.Exp(-dx[6:9])", "R = x.rotation", keyword="not corrected",
          mistake="attitude not corrected"),
+    Edit("eskf_inject", "R = x.rotation @ so3.Exp(-dx[6:9])", "R = x.rotation @ so3.Exp(-dx[6:9]).T",
+         keyword="sign", mistake="Exp(−δθ)ᵀ = Exp(+δθ)"),
     Edit("eskf_inject", "b_a = x.accel_bias - dx[9:12]", "b_a = x.accel_bias + dx[9:12]", keyword="sign",
          mistake="accelerometer bias corrected with +"),
     Edit("eskf_inject", "b_w = x.gyro_bias - dx[12:15]", "b_w = x.gyro_bias + dx[12:15]", keyword="sign",
@@ -167,15 +211,20 @@ MUTANTS = [
          mistake="bias slices swapped"),
     Edit("eskf_inject", "b_w = x.gyro_bias - dx[12:15]", "b_w = x.gyro_bias", keyword="not corrected",
          mistake="gyro bias not corrected"),
-    Edit("eskf_inject", "x.position - dx[0:3]", "x.position + dx[0:3]", keyword="sign",
+    Edit("eskf_inject", "b_a = x.accel_bias - dx[9:12]", "b_a = x.accel_bias", keyword="not corrected",
+         mistake="accelerometer bias not corrected (only p, v, R injected)"),
+    Edit("eskf_inject", "p = x.position - dx[0:3]", "p = x.position + dx[0:3]", keyword="sign",
          mistake="position corrected with +"),
-    Edit("eskf_inject", "x.velocity - dx[3:6]", "x.velocity + dx[3:6]", keyword="sign",
+    Edit("eskf_inject", "v = x.velocity - dx[3:6]", "v = x.velocity + dx[3:6]", keyword="sign",
          mistake="velocity corrected with +"),
-    Edit("eskf_inject", "x.position - dx[0:3], x.velocity - dx[3:6]", "x.position - dx[3:6], x.velocity - dx[0:3]",
-         keyword="wrong part of dx", mistake="position and velocity slices swapped"),
+    Edit("eskf_inject", "p = x.position - dx[0:3]\n    v = x.velocity - dx[3:6]",
+         "p = x.position - dx[3:6]\n    v = x.velocity - dx[0:3]", keyword="wrong part of dx",
+         mistake="position and velocity slices swapped"),
+    Edit("eskf_inject", "return NominalState(p, v, R, b_a, b_w)", "return NominalState(p, v, x.rotation, b_a, b_w)",
+         keyword="not corrected", mistake="corrected attitude computed but not returned"),
     # ---- reset_covariance ----
     Edit("eskf_reset", "G[6:9, 6:9] = np.eye(3) + 0.5 * so3.hat(dx[6:9])",
-         "G[6:9, 6:9] = np.eye(3) - 0.5 * so3.hat(dx[6:9])", keyword="sign", mistake="I − ½[δθ]×"),
+         "G[6:9, 6:9] = np.eye(3) - 0.5 * so3.hat(dx[6:9])", keyword="sign", mistake="I − ½[δθ]×, the reset of the opposite convention (the stub)"),
     Edit("eskf_reset", "P = G @ P @ G.T", "P = G.T @ P @ G", keyword="sign", mistake="Gᵀ P G"),
     Edit("eskf_reset", "G[6:9, 6:9] = np.eye(3) + 0.5 * so3.hat(dx[6:9])",
          "G[6:9, 6:9] = so3.right_jacobian(dx[6:9])", keyword="right Jacobian", mistake="J_r instead of J_l"),
@@ -190,8 +239,13 @@ MUTANTS = [
          "G[6:9, 6:9] = np.eye(3) + 0.5 * so3.hat(dx[3:6])", keyword="dx[6:9]", mistake="wrong slice"),
     Edit("eskf_reset", "P = G @ P @ G.T", "pass", keyword="unchanged", mistake="no reset at all"),
     # ---- the run ----
+    Edit("eskf_run", "R_noise = np.diag(cfg.lidar_std**2)",
+         "R_noise = np.diag(np.array([0.2, 0.2, 0.2, 0.3, 0.3, 0.3]) ** 2)", keyword="DEGREES",
+         mistake="the attitude σ 0.3° used as radians in R (the stub)"),
+    Edit("eskf_run", _UPDATE, "            pass\n", keyword="never used",
+         mistake="no update at the lidar times: the output is the prior (the stub)"),
     Edit("eskf_run", "R_noise = np.diag(cfg.lidar_std**2)", "R_noise = np.diag(cfg.lidar_std)",
-         keyword="variances", mistake="R = diag(σ) (the stub)"),
+         keyword="variances", mistake="R = diag(σ)"),
     Edit("eskf_run", "P = np.diag(cfg.prior_std**2)", "P = np.diag(cfg.prior_std)", keyword="prior covariance",
          mistake="P₀ = diag(σ₀)"),
     Edit("eskf_run", "            P = reset_covariance(P, dx)\n", "", keyword="reset",
@@ -202,21 +256,9 @@ MUTANTS = [
     Edit("eskf_run", "            y = pose_residual(", "            out.append((t, x.position, x.rotation, P))\n"
                                                      "            y = pose_residual(",
          keyword="posterior", mistake="prior stored (and the posterior too: twice as many rows)"),
-    Edit("eskf_run", "            y = pose_residual(x.position, x.rotation, lidar.position[j], lidar.rotation[j])\n"
-                     "            K = kalman_gain(P, POSE_G, R_noise)\n"
-                     "            dx = K @ y\n"
-                     "            P = update_covariance(P, K, POSE_G, R_noise)\n"
-                     "            x = inject(x, dx)\n"
-                     "            P = reset_covariance(P, dx)\n"
-                     "            out.append((t, x.position, x.rotation, P))\n",
-         "            out.append((t, x.position, x.rotation, P))\n"
-         "            y = pose_residual(x.position, x.rotation, lidar.position[j], lidar.rotation[j])\n"
-         "            K = kalman_gain(P, POSE_G, R_noise)\n"
-         "            dx = K @ y\n"
-         "            P = update_covariance(P, K, POSE_G, R_noise)\n"
-         "            x = inject(x, dx)\n"
-         "            P = reset_covariance(P, dx)\n",
-         keyword="posterior", mistake="prior stored instead of the posterior"),
+    Edit("eskf_run", _UPDATE_REGION + "            out.append((t, x.position, x.rotation, P))\n",
+         "            out.append((t, x.position, x.rotation, P))\n" + _UPDATE, keyword="posterior",
+         mistake="prior stored instead of the posterior"),
     Edit("eskf_run", "y = pose_residual(x.position, x.rotation, lidar.position[j], lidar.rotation[j])",
          "y = pose_residual(lidar.position[j], lidar.rotation[j], x.position, x.rotation)", keyword="sign",
          mistake="residual arguments swapped (measurement − prediction)"),
@@ -272,9 +314,13 @@ MUTANTS = [
     Edit("nominal_ekf_observation", "return q_meas if q_meas @ q_check >= 0.0 else -q_meas",
          "return q_meas if q_meas[0] * q_check[0] >= 0.0 else -q_meas", keyword="four",
          mistake="signs of the scalar parts only"),
-    # ---- bonus: nominal-state Jacobian ----
+    # ---- bonus: nominal-state Jacobian (a whole step: the placeholder leaves the rows of q̇ zero) ----
+    Edit("nominal_ekf_jacobian", _Q_ROWS, "    pass", keyword="missing", mistake="rows of q̇ left zero (the stub)"),
+    Edit("nominal_ekf_jacobian", _Q_ROWS,
+         "    A[6:10, 6:10] = 0.5 * quat_omega(w - b_w)\n    A[6:10, 13:16] = 0.5 * quat_omega(w - b_w)[:, 1:]",
+         keyword="−½ Ξ(q)", mistake="∂q̇/∂b_ω taken from Ω (the factor that multiplies q), not Ξ(q)"),
     Edit("nominal_ekf_jacobian", _Q_BW, "A[6:10, 13:16] = 0.5 * quat_xi(q)", keyword="minus sign",
-         mistake="+½ Ξ(q) (the stub)"),
+         mistake="+½ Ξ(q)"),
     Edit("nominal_ekf_jacobian", _Q_BW, "A[6:10, 13:16] = -quat_xi(q)", keyword="½", mistake="½ missing"),
     Edit("nominal_ekf_jacobian", "A[6:10, 6:10] = 0.5 * quat_omega(w - b_w)", "A[6:10, 6:10] = quat_omega(w - b_w)",
          keyword="½", mistake="½ missing in Ω"),
@@ -293,9 +339,80 @@ MUTANTS = [
     Edit("nominal_ekf_jacobian", "    A[0:3, 3:6] = np.eye(3)\n", "", keyword="missing", mistake="ṗ = v block missing"),
     Edit("nominal_ekf_jacobian", "A[3:6, 6:10] = rotate_jacobian(q, f - b_a)",
          "A[3:6, 6:10] = -rotate_jacobian(q, f - b_a)", keyword="sign", mistake="−∂(R a)/∂q"),
+    # ---- challenge: the transition by finite differences ----
+    Edit("eskf_fd_transition", "so3.Log(true.rotation.T @ nominal.rotation)", "so3.Log(nominal.rotation @ true.rotation.T)",
+         keyword="body frame", mistake="attitude error in the navigation frame (the stub)"),
+    Edit("eskf_fd_transition", _FD_LOOP, "    pass", keyword="all zero", mistake="J left at zero (the stub)"),
+    Edit("eskf_fd_transition", "nominal.position - true.position, nominal.velocity - true.velocity,\n"
+                               "                           so3.Log(true.rotation.T @ nominal.rotation),\n"
+                               "                           nominal.accel_bias - true.accel_bias, "
+                               "nominal.gyro_bias - true.gyro_bias",
+         "true.position - nominal.position, true.velocity - nominal.velocity,\n"
+         "                           so3.Log(nominal.rotation.T @ true.rotation),\n"
+         "                           true.accel_bias - nominal.accel_bias, true.gyro_bias - nominal.gyro_bias",
+         keyword="sign", mistake="error measured as true − nominal"),
+    Edit("eskf_fd_transition", "plus = nominal_step(inject(x, d), f, w, f, w, T, g)\n"
+                               "        minus = nominal_step(inject(x, -d), f, w, f, w, T, g)",
+         "plus = nominal_step(inject(x, -d), f, w, f, w, T, g)\n"
+         "        minus = nominal_step(inject(x, d), f, w, f, w, T, g)",
+         keyword="sign", mistake="true state with error d made by adding d (inject(x, −d))"),
+    Edit("eskf_fd_transition", "x_after = nominal_step(x, f, w, f, w, T, g)", "x_after = x", keyword="before the step",
+         mistake="the nominal state not stepped (error after the step measured against the old nominal)"),
+    Edit("eskf_fd_transition", "J[:, i] = (error_between(x_after, plus) - error_between(x_after, minus)) / (2 * h)",
+         "J[:, i] = (error_between(x_after, plus) - error_between(x_after, minus)) / h", keyword="2h",
+         mistake="central difference divided by h"),
+    Edit("eskf_fd_transition", "J[:, i] = (error_between(x_after, plus) - error_between(x_after, minus)) / (2 * h)",
+         "J[i, :] = (error_between(x_after, plus) - error_between(x_after, minus)) / (2 * h)", keyword="transposed",
+         mistake="rows filled instead of columns"),
+    Edit("eskf_fd_transition", "plus = nominal_step(inject(x, d), f, w, f, w, T, g)\n"
+                               "        minus = nominal_step(inject(x, -d), f, w, f, w, T, g)",
+         "plus = inject(x, d)\n        minus = inject(x, -d)", keyword="true states were compared before",
+         mistake="true states not stepped (J compares errors across the step with states before it)"),
+    # the learner's inject is used: a wrong one is named first
+    Edit("eskf_fd_transition", "b_w = x.gyro_bias - dx[12:15]", "b_w = x.gyro_bias + dx[12:15]", cell="inj",
+         keyword="fix inject first", mistake="inject wrong (the challenge would blame the loop otherwise)"),
+
 ]
 
 EQUIVALENTS = [
+    Edit("eskf_propagate", "P_check = F @ P @ F.T + B @ Q @ B.T", "P_check = F @ P @ F.T\n    P_check += B @ Q @ B.T",
+         mistake="in two statements"),
+    Edit("eskf_inject", _INJECT,
+         "    return NominalState(x.position - dx[:3], x.velocity - dx[3:6], x.rotation @ so3.Exp(dx[6:9]).T,\n"
+         "                        x.accel_bias - dx[9:12], x.gyro_bias - dx[12:])",
+         mistake="one expression, Exp(δθ)ᵀ"),
+    Edit("eskf_inject", _INJECT,
+         "    import dataclasses\n"
+         "    return dataclasses.replace(x, position=x.position - dx[0:3], velocity=x.velocity - dx[3:6],\n"
+         "                               rotation=x.rotation @ so3.Exp(-dx[6:9]),\n"
+         "                               accel_bias=x.accel_bias - dx[9:12], gyro_bias=x.gyro_bias - dx[12:15])",
+         mistake="dataclasses.replace"),
+    Edit("eskf_pose_residual", "dp = p_check - p_meas\n    dtheta = so3.Log(R_meas.T @ R_check)",
+         "dp = -(p_meas - p_check)\n    dtheta = -so3.Log(R_check.T @ R_meas)",
+         mistake="measurement − prediction, negated (Log(Aᵀ B) = −Log(Bᵀ A))"),
+    Edit("eskf_run", _UPDATE,
+         "            y = pose_residual(x.position, x.rotation, lidar.position[j], lidar.rotation[j])\n"
+         "            K = kalman_gain(P, POSE_G, R_noise)\n"
+         "            dx = K @ (y - POSE_G @ np.zeros(15))\n"
+         "            P = reset_covariance(update_covariance(P, K, POSE_G, R_noise), dx)\n"
+         "            x = inject(x, dx)\n",
+         mistake="the update written out with the zero prior error mean, reset nested"),
+    Edit("eskf_run", "R_noise = np.diag(cfg.lidar_std**2)",
+         "R_noise = np.diag(np.r_[np.full(3, 0.2), np.deg2rad(np.full(3, 0.3))] ** 2)",
+         mistake="R from the stated σ, the attitude converted to radians"),
+    Edit("nominal_ekf_jacobian", _Q_ROWS,
+         "    A[6:10, 13:16] = -0.5 * quat_xi(q)\n    A[6:10, 6:10] = 0.5 * quat_omega(w - b_w)",
+         mistake="rows of q̇ in the other order"),
+    Edit("eskf_fd_transition", _FD_LOOP,
+         "    from kalman_course.core.numdiff import numerical_jacobian\n"
+         "    J = numerical_jacobian(lambda dx: error_between(x_after, nominal_step(inject(x, dx), f, w, f, w, T, g)),\n"
+         "                           np.zeros(15), h)",
+         mistake="the course's numerical_jacobian (central differences)"),
+    Edit("eskf_fd_transition", "minus = nominal_step(inject(x, -d), f, w, f, w, T, g)\n"
+                               "        J[:, i] = (error_between(x_after, plus) - error_between(x_after, minus)) / (2 * h)",
+         "J[:, i] = error_between(x_after, plus) / h", mistake="one-sided difference (error about 1e-8 here)"),
+    Edit("eskf_fd_transition", "so3.Log(true.rotation.T @ nominal.rotation)", "-so3.Log(nominal.rotation.T @ true.rotation)",
+         mistake="−Log(Řᵀ R) = Log(Rᵀ Ř)"),
     Edit("eskf_error_dynamics", _DV_DTH, "F[3:6, 6:9] = -so3.hat(R @ a) @ R",
          mistake="−[R a]× R = −R[a]× (the hat of a rotated vector)"),
     Edit("eskf_error_dynamics", _DV_DTH,
