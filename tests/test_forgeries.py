@@ -486,8 +486,8 @@ FORGERIES = {
 # ---------------------------------------------------------------------------------------
 
 #: The checks that the JSON cases' base notebook fails: its kf_update is the stub, and
-#: run_gnss_kf calls it.
-BASE_FAILS = {"kf_update", "gnss_kf_run"}
+#: run_gnss_kf and the challenge's filter with missing fixes call it.
+BASE_FAILS = {"kf_update", "gnss_kf_run", "gnss_kf_gaps"}
 
 
 def _points_raised(nb):
@@ -700,7 +700,14 @@ def _submissions() -> dict[str, tuple[str, object]]:
 
 
 def _release_points(notebook: str) -> dict[str, int]:
+    """Every graded check's points, optional challenges included."""
     return dict(_exercise(notebook).metadata["kalman_course"]["graders"])
+
+
+def _core(notebook: str, points: dict[str, int]) -> int:
+    """The sum of ``points`` over the core checks (a gradebook's ``points`` leaves challenges out)."""
+    challenges = set(_exercise(notebook).metadata["kalman_course"]["challenges"])
+    return sum(p for check, p in points.items() if check not in challenges)
 
 
 def grade_class(root, out):
@@ -767,14 +774,16 @@ def test_an_edit_of_the_json_is_reported_and_changes_no_points(graded, name):
     expected = {check: 0 if check in BASE_FAILS else points for check, points in release.items()}
     assert result["tampered"], f"{JSON_EDITS[name].__doc__} is not reported"
     assert _by_check(result) == expected
-    assert result["possible"] == sum(release.values())
+    assert result["possible"] == _core(CH03, release)
 
 
 @pytest.mark.parametrize("name", sorted(CONTROLS))
 def test_an_honest_notebook_earns_every_point_unflagged(graded, name):
     result = graded[name]
     notebook, edit = CONTROLS[name]
-    full = sum(_release_points(notebook).values())
+    release = _release_points(notebook)
+    full, challenges = _core(notebook, release), sum(release.values()) - _core(notebook, release)
     assert (result["points"], result["possible"]) == (full, full), [c["message"] for c in result["checks"]]
+    assert (result["challenge_points"], result["challenge_possible"]) == (challenges, challenges)
     assert result["flags"] == [], edit.__doc__
     assert (result["tampered"], result["readded"]) == ([], []), edit.__doc__

@@ -1,13 +1,16 @@
-"""Checks for chapter 09: NEES, NIS, chi-square bounds, the innovation gate and a verdict.
+"""Checks for chapter 09: NEES, NIS, chi-square bounds, the innovation gate, a verdict, and
+(the optional challenge) the Monte Carlo NEES test.
 
-Every case comes from the reference ESKF on the KITTI ``cruise`` excerpt: pose and
-navigation-state errors and covariances of the shipped run, priors at held-out lidar
-poses, innovations of the run with seeded map-matching failures, and NIS records of three
-noise settings. Some cases re-express those quantities in mixed coordinates (a seeded,
-non-symmetric, non-orthogonal matrix A: e → A e, P → A P Aᵀ), which leaves every correct
-NEES/NIS unchanged but makes covariances strongly correlated and observation matrices
-square, so that a dropped correlation or a misplaced transpose changes the value instead
-of only the shape.
+Every case of the core checks comes from the reference ESKF on the KITTI ``cruise``
+excerpt: pose and navigation-state errors and covariances of the shipped run, priors at
+held-out lidar poses, innovations of the run with seeded map-matching failures, and NIS
+records of three noise settings. Some cases re-express those quantities in mixed
+coordinates (a seeded, non-symmetric, non-orthogonal matrix A: e → A e, P → A P Aᵀ), which
+leaves every correct NEES/NIS unchanged but makes covariances strongly correlated and
+observation matrices square, so that a dropped correlation or a misplaced transpose
+changes the value instead of only the shape. The challenge's cases are NEES records of
+seeded Monte Carlo runs of the ESKF on simulated IMU trajectories with exact truth
+(lecture 09 §2).
 
 A learner's function is run on every case before anything is judged, and a known mistake
 is named only when it reproduces the learner's results on all cases (a wrong formula
@@ -417,6 +420,10 @@ def _nis_mistakes():
         (with_S(lambda P, G, R: R), "S = G P̌ Gᵀ + R: the prior's uncertainty G P̌ Gᵀ is missing"),
         (with_S(lambda P, G, R: P), "that weights ν by P̌⁻¹, the state's prior covariance; the "
                                     "innovation's covariance is S = G P̌ Gᵀ + R"),
+        (with_S(lambda P, G, R: P[:len(R), :len(R)] + R),
+         "P̌[:m, :m] is the covariance of the FIRST m error states, which are not what the sensor "
+         "measures (in the ESKF: δp and δv, while the lidar sees δp and δθ); the prior must be "
+         "mapped into the measurement space through G: S = G P̌ Gᵀ + R"),
         (with_S(lambda P, G, R: P + R), "P̌ + R: the prior must be mapped into the measurement "
                                         "space: S = G P̌ Gᵀ + R"),
         (with_S(lambda P, G, R: G.T @ P @ G + R), "Gᵀ P̌ G: the transpose is on the wrong side; "
@@ -547,6 +554,14 @@ def _gate_mistakes():
     """Wrong gate decisions as functions of (NIS, m, confidence, ν, S), with their hints."""
     q = metrics.chi2_ppf
     out = [
+        (lambda v, m, c, y, S: True,
+         "Every innovation was accepted, even a map-matching failure metres away: the gate refuses "
+         "nothing. It must refuse an innovation whose NIS is too large to be noise at this confidence. "
+         "(If your gate does compute a NIS, check that it weights ν by the inverse of S: νᵀ S ν is tiny "
+         "here, S holding variances of centimetres, so it passes everything.)"),
+        (lambda v, m, c, y, S: False,
+         "Every innovation was refused: a filter behind this gate never uses its sensor. Accept an "
+         "innovation whose NIS is plausible for m components at this confidence."),
         (lambda v, m, c, y, S: v >= q(c, m), "The comparison is reversed: accept when the NIS is at "
                                               "most the threshold."),
         (lambda v, m, c, y, S: v <= q(c, 1),
@@ -611,7 +626,7 @@ def _gate_reference():
     return values, dims, conf, threshold
 
 
-@check(uses={"nees": "consistency_nees"})
+@check(uses={"nees": "consistency_nees", "chi2_interval": "chi2_interval"})
 def check_innovation_gate(gate):
     """The learner's ``gate(innovation, S, confidence)`` on the KITTI outlier run."""
     cases = gate_cases()
@@ -626,7 +641,9 @@ def check_innovation_gate(gate):
     wrong = np.nonzero(answers != (values <= threshold))[0]
     if wrong.size == 0:
         return
-    i = wrong[0]
+    # show the clearest wrong decision: the NIS farthest from its gate (a failure metres away
+    # accepted says more than a borderline case)
+    i = wrong[np.argmax(np.abs(np.log(values[wrong] / threshold[wrong])))]
     hint = (f"an innovation of {dims[i]} components with NIS {values[i]:.2f} ({conf[i]:.1%} gate "
             f"{threshold[i]:.2f}) was {'accepted' if answers[i] else 'rejected'}; {wrong.size} of "
             f"{len(cases)} decisions are wrong. ")
@@ -682,6 +699,10 @@ def _verdict_mistakes():
     """Wrong verdict rules as functions of (values, dof, confidence), with their hints."""
     b, q = metrics.chi2_bounds, metrics.chi2_ppf
     return [
+        (lambda values, dof, c: "consistent",
+         "verdict says 'consistent' for every record, even one whose mean NIS is several times dof: "
+         "the record was not tested. Average it, compare the mean with the two-sided interval of a "
+         "mean of N values (your chi2_interval), and name the side on which it leaves."),
         (_verdict_by(b, labels=("underconfident", "overconfident")),
          "overconfident and underconfident are swapped: a mean above the interval means the errors "
          "are larger than S says, so the filter is OVERconfident (S too small); below it, underconfident."),
@@ -755,3 +776,144 @@ def check_consistency_verdict(verdict):
             raise CheckFailed(f"{message} Hint: {why}")
     raise CheckFailed(f"{message} Hint: a mean above the interval means the errors are larger than S "
                       "says, so the filter is OVERconfident (S too small); below it, underconfident")
+
+
+# --------------------------------------------------------------------------------------
+# the challenge: the Monte Carlo NEES test
+# --------------------------------------------------------------------------------------
+
+#: Monte Carlo runs of the challenge (lecture 09 §2): runs, first seed, duration [s], and the
+#: filters (label, process-noise density scale: 1 is tuned, 0.1 is Q / 100).
+MC_RUNS, MC_SEED, MC_DURATION = 20, 0, 15.0
+MC_FILTERS = (("the tuned filter", 1.0), ("the filter with Q / 100", 0.1))
+
+
+@functools.lru_cache(maxsize=None)
+def monte_carlo_cases():
+    """(label, NEES of each run (n_runs, n_steps), dof, confidence) of simulated runs.
+
+    The ESKF on ``MC_RUNS`` seeded synthetic IMU trajectories with exact truth
+    (:func:`kalman_course.chapters.consistency.monte_carlo`), tuned and with Q / 100: the
+    15-state NEES and the 6-dof pose NEES, of all runs and of the first 5, at 90, 95 and
+    99 %. n_runs (20 or 5) is never the number of steps (150) nor a dof, so averaging along
+    the wrong axis, or taking n_runs from the wrong one, changes the shape or the interval;
+    no run average lies closer than 1e-4 (relative) to its bound, so no correct way of
+    computing the mean or the quantiles can flip a decision.
+    """
+    cases = []
+    for label, scale in MC_FILTERS:
+        mc = consistency.monte_carlo(n_runs=MC_RUNS, seed=MC_SEED, duration=MC_DURATION, process_scale=scale)
+        cases += [(f"the 15-state NEES of {MC_RUNS} runs of {label}", mc.nees, 15, 0.95),
+                  (f"the 6-dof pose NEES of {MC_RUNS} runs of {label}", mc.nees_pose, 6, 0.95),
+                  (f"the 15-state NEES of 5 runs of {label}", mc.nees[:5], 15, 0.99),
+                  (f"the 6-dof pose NEES of 5 runs of {label}", mc.nees_pose[:5], 6, 0.9)]
+    for _, runs, _, _ in cases:
+        runs.setflags(write=False)           # cached: shared by every call of the check
+    return tuple(cases)
+
+
+def _inside(average, lo, hi):
+    return (average >= lo) & (average <= hi)
+
+
+def _monte_carlo_reference(runs, dof, confidence):
+    return _inside(runs.mean(axis=0), *metrics.chi2_bounds(dof, runs.shape[0], confidence))
+
+
+def _monte_carlo_mistakes():
+    """Wrong per-step decisions as functions of (runs (n_runs, n_steps), dof, confidence)."""
+    b, q = metrics.chi2_bounds, metrics.chi2_ppf
+
+    def band(bounds, statistic=lambda runs, d: runs.mean(axis=0)):
+        return lambda runs, d, c: _inside(statistic(runs, d), *bounds(d, runs.shape[0], runs.shape[1], c))
+
+    return [
+        (lambda runs, d, c: ~_monte_carlo_reference(runs, d, c),
+         "True and False are swapped: True where the run average is INSIDE its interval."),
+        (band(lambda d, n, k, c: b(d, 1, c)),
+         "that is the interval of ONE run's NEES; the average of n_runs independent runs is much "
+         "narrower: the interval of a mean of n_runs values (your chi2_interval with n_runs)."),
+        (band(lambda d, n, k, c: b(d, k, c)),
+         "n_runs is the number of runs averaged at each step (the rows, axis 0), not the number of "
+         "time steps (the columns)."),
+        (band(lambda d, n, k, c: b(d, n * k, c)),
+         "that is the interval of a mean over every run AND every step; at one step the average "
+         "holds n_runs values only (and values of one run at different steps are not independent)."),
+        (band(lambda d, n, k, c: b(d * n, 1, c)),
+         "those are the bounds of the SUM of the n_runs values; the run average is the sum divided "
+         "by n_runs."),
+        (band(lambda d, n, k, c: b(d, n, c), statistic=lambda runs, d: runs.sum(axis=0)),
+         "the SUM over the runs is compared with the interval of their mean: average the runs."),
+        (band(lambda d, n, k, c: b(d, n, c), statistic=lambda runs, d: runs.mean(axis=0) / d),
+         "the run average is divided by dof but the interval is not: compare the average itself."),
+        (band(lambda d, n, k, c: b(n, d, c)), "dof and n_runs are swapped in the interval: "
+                                              "chi2_interval(dof, n_runs, confidence)."),
+        (band(lambda d, n, k, c: (0.0, q(c, d * n) / n)),
+         "a one-sided bound: a run average below the interval (an underconfident filter) must fail "
+         "too; use the two-sided interval."),
+        (band(lambda d, n, k, c: (q(1 - c, d * n) / n, q(c, d * n) / n)),
+         "the tails of the interval are (1 − c)/2 each, not 1 − c."),
+        (band(lambda d, n, k, c: b(d, n, 1 - c)), "the interval's confidence is 1 − c; it must hold c inside."),
+        (band(lambda d, n, k, c: b(d, n, 0.95)), "the 95 % is written into the function: use the "
+                                                 "`confidence` argument."),
+        (band(lambda d, n, k, c: b(15, n, c)), "15 degrees of freedom are written into the function: "
+                                               "use the `dof` argument (the pose NEES has 6)."),
+        (band(lambda d, n, k, c: b(d, n - 1, c)), "n_runs − 1: the average of n_runs runs has the "
+                                                  "interval of a mean of n_runs values (nothing is "
+                                                  "estimated from them)."),
+        (band(lambda d, n, k, c: b(d, n, c), statistic=lambda runs, d: np.median(runs, axis=0)),
+         "the median of the runs is not χ²-distributed like their mean: average them."),
+        (lambda runs, d, c: np.all(_inside(runs, *b(d, 1, c)), axis=0),
+         "each run's NEES is tested alone against the interval of one value; the Monte Carlo test "
+         "averages the runs at each step and tests that average against its (narrower) interval."),
+    ]
+
+
+def _mask(value, shape: tuple[int, int]) -> np.ndarray:
+    """The learner's decisions as a bool array (n_steps,), or a failure with a hint."""
+    n_runs, n_steps = shape
+    try:
+        arr = None if isinstance(value, (str, bytes)) else np.asarray(value)
+    except (TypeError, ValueError):
+        arr = None
+    what = f"monte_carlo_inside on {n_runs} runs of {n_steps} steps"
+    if arr is None or arr.dtype == object:
+        raise CheckFailed(f"{what} returned a {type_name(value)}; it must return one True/False per "
+                          f"time step, an array of shape ({n_steps},)")
+    if arr.shape == (n_runs,):
+        raise CheckFailed(f"{what} returned {n_runs} values: one per RUN. Hint: each run was averaged "
+                          "over time. The NEES of one run is correlated from step to step (an error "
+                          "persists), so its time average is not the mean of independent χ² values; "
+                          "at each time step, average the independent runs instead (one decision "
+                          f"per step, shape ({n_steps},)).")
+    if arr.shape == ():
+        raise CheckFailed(f"{what} returned one number; it must return one True/False per time step, "
+                          f"shape ({n_steps},) (the share inside is their mean, computed afterwards)")
+    if arr.shape != (n_steps,):
+        raise CheckFailed(f"{what} returned shape {arr.shape}; it must return one True/False per time "
+                          f"step, shape ({n_steps},)")
+    if arr.dtype != bool and not (np.issubdtype(arr.dtype, np.integer) and np.isin(arr, (0, 1)).all()):
+        raise CheckFailed(f"{what} returned {arr.dtype} values; it must return True/False per time step "
+                          f"(a boolean array of shape ({n_steps},))")
+    return arr.astype(bool)
+
+
+@check(uses=("chi2_interval",))
+def check_monte_carlo_nees(monte_carlo_inside):
+    """The learner's ``monte_carlo_inside(nees_runs, dof, confidence)`` on simulated Monte Carlo runs."""
+    cases = monte_carlo_cases()
+    answers = [_mask(call(monte_carlo_inside, runs, dof, c), runs.shape) for _, runs, dof, c in cases]
+    expected = [_monte_carlo_reference(runs, dof, c) for _, runs, dof, c in cases]
+    wrong = [int(np.sum(a != e)) for a, e in zip(answers, expected)]
+    if not any(wrong):
+        return
+    i = next(k for k, w in enumerate(wrong) if w)
+    label, runs, dof, c = cases[i]
+    message = (f"for {label} ({c:.0%}), {wrong[i]} of {runs.shape[1]} steps are judged wrongly "
+               f"({sum(1 for w in wrong if w)} of {len(cases)} cases wrong).")
+    for rule, why in _monte_carlo_mistakes():
+        if all(np.array_equal(rule(r, d, cc), a) for (_, r, d, cc), a in zip(cases, answers)):
+            raise CheckFailed(f"{message} Hint: {why}")
+    raise CheckFailed(f"{message} Hint: at each time step, average the NEES of the n_runs independent "
+                      "runs and test that average against the two-sided interval of a mean of n_runs "
+                      "χ²(dof) values.")

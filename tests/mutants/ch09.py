@@ -11,6 +11,8 @@ Checks and tolerances (``kalman_course/checks/consistency.py``):
   quantile from scipy or the package) cannot flip a decision; ≤ vs < and > vs ≥ are therefore equivalent mutants (a NIS exactly on a
   quantile has probability zero and cannot be constructed so that every correct way of
   computing it lands on it).
+- monte_carlo_nees (challenge): exact decisions per time step on Monte Carlo runs of the
+  simulated ESKF; no run average lies within 1e-4 (relative) of its bound.
 """
 
 import nbformat
@@ -21,7 +23,7 @@ NOTEBOOK = "09_tuning_consistency"
 
 NEES = "    return float(error @ np.linalg.solve(P, error))"
 S_LINE = "    S = G @ P_check @ G.T + R\n"
-NIS_RET = "    return float(innovation @ np.linalg.solve(S, innovation))"
+NIS_RET = "    return nees(innovation, S)"  # the NIS through the learner's nees, with S
 P_LINE = "    p_lo, p_hi = (1 - confidence) / 2, (1 + confidence) / 2\n"
 LO = "    lo = chi2_ppf(p_lo, dof * n_runs) / n_runs\n"
 HI = "    hi = chi2_ppf(p_hi, dof * n_runs) / n_runs\n"
@@ -33,6 +35,14 @@ BOUNDS = "    lo, hi = chi2_interval(dof, len(nis_values), confidence)  # your i
 MEAN = "    mean = np.mean(nis_values)\n"
 IFS = ('    if mean > hi:\n        return "overconfident"\n'
        '    if mean < lo:\n        return "underconfident"\n')
+CONSISTENT = '    return "consistent"\n'
+# the whole steps: the gate's and the verdict's reference bodies
+GATE_BODY = GATE_V + GATE_T + GATE_R
+VERDICT_BODY = BOUNDS + MEAN + IFS + CONSISTENT
+# the challenge (monte_carlo_inside)
+MC_AVG = "    average = np.mean(nees_runs, axis=0)\n"
+MC_BOUNDS = "    lo, hi = chi2_interval(dof, nees_runs.shape[0], confidence)\n"
+MC_RET = "    return (average >= lo) & (average <= hi)"
 
 
 def _nees(new, keyword, mistake):
@@ -53,6 +63,10 @@ def _gate(old, new, keyword, mistake):
 
 def _verdict(old, new, keyword, mistake):
     return Edit("consistency_verdict", old, new, keyword=keyword, mistake=mistake)
+
+
+def _mc(old, new, keyword, mistake):
+    return Edit("monte_carlo_nees", old, new, keyword=keyword, mistake=mistake)
 
 
 def _tail(cell_id, start):
@@ -82,6 +96,8 @@ MUTANTS = [
     _nees("    return float(error @ np.linalg.solve(P, error)) ** 2", "squared twice", "NEES squared"),
     _nees("    return 0.5 * float(error @ np.linalg.solve(P, error))", "½",
           "the ½ of the Gaussian exponent"),
+    _nees("    z = error / np.sqrt(np.diag(P))\n    return float(z @ z)", "diagonal",
+          "each component's z-score, squared and summed: the correlations dropped (the stub)"),
     _nees("    return float(np.sum(error ** 2 / np.diag(P)))", "diagonal",
           "only the variances, correlations dropped"),
     _nees("    return float(np.sum(error ** 2 / np.sqrt(np.diag(P))))", "standard deviation",
@@ -115,8 +131,9 @@ MUTANTS = [
     _nis(S_LINE, "    S = G @ P_check @ G.T + np.diag(R)\n", "adds to every row", "np.diag(R) broadcast"),
     _nis(S_LINE, "    S = G @ P_check @ G.T + np.linalg.inv(R)\n", "R⁻¹", "R⁻¹ added"),
     _nis(S_LINE, "    S = G @ P_check @ G.T - R\n", "sign", "R subtracted"),
-    _nis(S_LINE, "    S = P_check[:len(innovation), :len(innovation)] + R\n", "mapped into the measurement",
-         "a block of P̌ instead of G P̌ Gᵀ"),
+    _nis(S_LINE, "    S = P_check[:len(innovation), :len(innovation)] + R\n", "FIRST m error states",
+         "the first m × m block of P̌ instead of G P̌ Gᵀ (the stub)"),
+    _nis(S_LINE, "    S = P_check + R\n", "mapped into the measurement", "P̌ + R (fails on 15-state G)"),
     _nis(NIS_RET, "    return float(innovation @ S @ innovation)", "INVERSE", "S instead of S⁻¹"),
     _nis(NIS_RET, "    return float(innovation @ (1 / S) @ innovation)", "inverts each entry", "1 / S"),
     _nis(NIS_RET, "    return float(innovation @ np.linalg.solve(S, innovation)) / len(innovation)",
@@ -128,15 +145,17 @@ MUTANTS = [
          "add the covariances first", "(G P̌ Gᵀ)⁻¹ + R⁻¹"),
     _nis(NIS_RET, "    return float(innovation @ np.linalg.solve(P_check, innovation))", "P̌⁻¹",
          "the state's prior P̌ instead of S (only square G)"),
-    _nis(NIS_RET, "    return nees(innovation, S)\n\n\n" + BROKEN_NEES, "fix nees first",
+    _nis(NIS_RET, NIS_RET + "\n\n\n" + BROKEN_NEES, "fix nees first",
          "nis through the learner's own nees, which is wrong (dependency)"),
 
-    _nis(NIS_TAIL, NIS_TAIL.replace(S_LINE, "    S = G @ P_check @ G.T\n") + "\n\n\n" + BROKEN_NEES,
+    _nis(NIS_TAIL, NIS_TAIL.replace(S_LINE, "    S = G @ P_check @ G.T\n")
+                          .replace(NIS_RET, "    return float(innovation @ np.linalg.solve(S, innovation))")
+         + "\n\n\n" + BROKEN_NEES,
          "observation noise", "R left out while a wrong nees, which nis does not call, is defined: "
                               "the hint must blame nis, not nees"),
 
     # ---- chi2_interval: F⁻¹((1 ∓ c)/2; dof · n_runs) / n_runs
-    _interval(P_LINE, "    p_lo, p_hi = 0.0, confidence\n", "one-sided", "one-sided interval"),
+    _interval(P_LINE, "    p_lo, p_hi = 0.0, confidence\n", "one-sided", "one-sided interval (the stub)"),
     _interval(P_LINE, "    p_lo, p_hi = 1 - confidence, confidence\n", "(1 − c)/2 each", "tails 1 − c"),
     _interval(P_LINE, "    p_lo, p_hi = confidence / 2, 1 - confidence / 2\n", "INSIDE", "c taken as α"),
     _interval(P_LINE, "    p_lo, p_hi = (1 - confidence) / 2, confidence\n", "hi is the c quantile",
@@ -176,7 +195,17 @@ MUTANTS = [
     _interval("    return lo, hi", "    return lo", "two numbers", "returns only lo"),
 
     # ---- innovation_gate: accept iff νᵀ S⁻¹ ν ≤ F⁻¹(confidence; m)
-    _gate(GATE_T, "    threshold = chi2_ppf(confidence, 1)\n", "ONE degree", "dof 1 (the stub)"),
+    _gate(GATE_BODY, "    return True", "refuses nothing", "accepts every innovation (the stub)"),
+    _gate(GATE_BODY, "    return False", "never uses its sensor", "refuses every innovation"),
+    _gate(GATE_BODY, "    lo, hi = chi2_interval(len(innovation), 1, confidence)\n"
+                     "    return bool(lo <= nees(innovation, S) <= hi)", "one-sided",
+          "the two-sided interval of one value, through the learner's chi2_interval"),
+    _gate(GATE_BODY, "    return bool(nees(innovation, S) <= chi2_interval(len(innovation), 1, confidence)[1])",
+          "(1 + c)/2", "the upper end of the learner's two-sided interval"),
+    _gate(GATE_BODY, "    lo, hi = chi2_interval(len(innovation), 1, confidence)\n"
+                     "    return bool(lo <= nees(innovation, S) <= hi)\n\n\n" + BROKEN_INTERVAL,
+          "fix chi2_interval first", "gate through the learner's own chi2_interval, which is wrong (dependency)"),
+    _gate(GATE_T, "    threshold = chi2_ppf(confidence, 1)\n", "ONE degree", "dof 1"),
     _gate(GATE_T, "    threshold = chi2_ppf(confidence, S.size)\n", "m²", "S.size degrees of freedom"),
     _gate(GATE_T, "    threshold = chi2_ppf(confidence, 6)\n", "6 degrees of freedom", "dof fixed at 6"),
     _gate(GATE_T, "    threshold = chi2_ppf(confidence, len(innovation) - 1)\n", "off by one", "dof m − 1"),
@@ -207,9 +236,10 @@ MUTANTS = [
           "gate through the learner's own nees, which is wrong (dependency)"),
 
     # ---- consistency_verdict: mean NIS against chi2_interval(dof, N, c)
+    _verdict(VERDICT_BODY, CONSISTENT, "not tested", "always 'consistent' (the stub)"),
     _verdict(IFS, '    if mean > hi:\n        return "underconfident"\n'
                   '    if mean < lo:\n        return "overconfident"\n', "swapped",
-             "over/underconfident swapped (the stub)"),
+             "over/underconfident swapped"),
     _verdict(BOUNDS, "    lo, hi = chi2_interval(dof, 1, confidence)\n", "ONE value",
              "interval of one value, not of the mean"),
     _verdict(BOUNDS, "    lo, hi = chi2_interval(dof * len(nis_values), 1, confidence)\n", "SUM",
@@ -253,6 +283,41 @@ MUTANTS = [
              "a margin on the upper bound (mean > 1.05 hi)"),
     _verdict(VERDICT_TAIL, VERDICT_TAIL.replace(BOUNDS, VIA_INTERVAL) + "\n\n\n" + BROKEN_INTERVAL,
              "fix chi2_interval first", "verdict through the learner's own chi2_interval, which is wrong (dependency)"),
+
+    # ---- monte_carlo_nees (challenge): per step, the run average against chi2_interval(dof, n_runs, c)
+    _mc(MC_AVG + MC_BOUNDS, "    average = np.mean(nees_runs, axis=1)\n"
+                            "    lo, hi = chi2_interval(dof, nees_runs.shape[1], confidence)\n",
+        "over time", "each run averaged over time, as for the NIS (the stub)"),
+    _mc(MC_BOUNDS, "    lo, hi = chi2_interval(dof, nees_runs.shape[1], confidence)\n", "not the number of time steps",
+        "n_runs taken from the steps axis"),
+    _mc(MC_BOUNDS, "    lo, hi = chi2_interval(dof, 1, confidence)\n", "ONE run", "interval of one value"),
+    _mc(MC_BOUNDS, "    lo, hi = chi2_interval(dof, nees_runs.size, confidence)\n", "every run AND every step",
+        "all values as independent"),
+    _mc(MC_BOUNDS, "    lo, hi = chi2_interval(dof * nees_runs.shape[0], 1, confidence)\n", "SUM",
+        "bounds of the sum"),
+    _mc(MC_AVG, "    average = np.sum(nees_runs, axis=0)\n", "SUM over the runs", "sum vs the mean's bounds"),
+    _mc(MC_AVG, "    average = np.mean(nees_runs, axis=0) / dof\n", "divided by dof", "normalised average"),
+    _mc(MC_BOUNDS, "    lo, hi = chi2_interval(nees_runs.shape[0], dof, confidence)\n", "swapped",
+        "dof and n_runs swapped"),
+    _mc(MC_BOUNDS, "    lo, hi = 0.0, chi2_ppf(confidence, dof * nees_runs.shape[0]) / nees_runs.shape[0]\n",
+        "one-sided", "one-sided bound"),
+    _mc(MC_BOUNDS, "    lo, hi = chi2_interval(dof, nees_runs.shape[0], 1 - confidence)\n", "1 − c",
+        "α instead of 1 − α"),
+    _mc(MC_BOUNDS, "    lo, hi = chi2_interval(dof, nees_runs.shape[0], 0.95)\n", "`confidence` argument",
+        "95 % hard-coded"),
+    _mc(MC_BOUNDS, "    lo, hi = chi2_interval(15, nees_runs.shape[0], confidence)\n", "`dof` argument",
+        "15 dof hard-coded"),
+    _mc(MC_BOUNDS, "    lo, hi = chi2_interval(dof, nees_runs.shape[0] - 1, confidence)\n", "n_runs − 1",
+        "n_runs − 1"),
+    _mc(MC_AVG, "    average = np.median(nees_runs, axis=0)\n", "median", "median of the runs"),
+    _mc(MC_RET, "    return (average < lo) | (average > hi)", "swapped", "True outside"),
+    _mc(MC_RET, "    return np.mean((average >= lo) & (average <= hi))", "one number", "returns the share"),
+    _mc(MC_AVG + MC_BOUNDS,
+        "    lo, hi = chi2_interval(dof, 1, confidence)\n"
+        "    return np.all((nees_runs >= lo) & (nees_runs <= hi), axis=0)\n", "tested alone",
+        "every run inside the one-value interval"),
+    _mc(MC_RET, MC_RET + "\n\n\n" + BROKEN_INTERVAL, "fix chi2_interval first",
+        "through the learner's own chi2_interval, which is wrong (dependency)"),
 ]
 
 
@@ -287,7 +352,8 @@ EQUIVALENTS = [
     _same("consistency_nis", S_LINE, '    S = np.einsum("ij,jk,lk->il", G, P_check, G) + R\n', "einsum"),
     _same("consistency_nis", NIS_RET, "    L = np.linalg.cholesky(S)\n    z = np.linalg.solve(L, innovation)\n"
                                       "    return float(z @ z)", "Cholesky whitening"),
-    _same("consistency_nis", NIS_RET, "    return nees(innovation, S)", "through the (correct) nees"),
+    _same("consistency_nis", NIS_RET, "    return float(innovation @ np.linalg.solve(S, innovation))",
+          "the quadratic form written out, not through nees"),
     _same("consistency_nis", NIS_RET, "    return innovation @ np.linalg.solve(S, innovation)", "numpy scalar"),
     # ---- chi2_interval
     _same("chi2_interval", LOHI, "    from scipy.stats import chi2\n    lo = chi2.ppf(p_lo, dof * n_runs) / n_runs\n"
@@ -322,13 +388,36 @@ EQUIVALENTS = [
                                          "/ len(nis_values)\n", "scipy's chi2.interval"),
     _same("consistency_verdict", IFS, '    if hi < mean:\n        return "overconfident"\n'
                                       '    elif lo > mean:\n        return "underconfident"\n', "comparisons mirrored"),
-    _same("consistency_verdict", MEAN + "    # BEGIN SOLUTION consistency_verdict\n" + IFS,
-          "    total = np.sum(nis_values)\n    # BEGIN SOLUTION consistency_verdict\n"
+    _same("consistency_verdict", MEAN + IFS,
+          "    total = np.sum(nis_values)\n"
           "    n = len(nis_values)\n    if total > hi * n:\n        return \"overconfident\"\n"
           "    if total < lo * n:\n        return \"underconfident\"\n", "the sum against the sum's bounds"),
+    # whole steps written another way
+    _same("innovation_gate", GATE_BODY,
+          "    return bool(nees(innovation, S) <= chi2_ppf(confidence, innovation.shape[0]))",
+          "the whole gate in one line, through the (correct) nees"),
+    _same("consistency_verdict", VERDICT_BODY,
+          "    mean = float(np.mean(nis_values))\n    lo, hi = chi2_interval(dof, nis_values.size, confidence)\n"
+          "    return \"overconfident\" if mean > hi else \"underconfident\" if mean < lo else \"consistent\"\n",
+          "the whole verdict as one conditional expression"),
+    # ---- monte_carlo_nees
+    _same("monte_carlo_nees", MC_AVG, "    average = nees_runs.sum(axis=0) / len(nees_runs)\n", "mean written out"),
+    _same("monte_carlo_nees", MC_AVG, "    average = nees_runs.T.mean(axis=1)\n", "mean of the transpose"),
+    _same("monte_carlo_nees", MC_BOUNDS, "    lo, hi = chi2_interval(dof, len(nees_runs), confidence)\n",
+          "n_runs as len()"),
+    _same("monte_carlo_nees", MC_RET, "    return np.logical_and(average >= lo, average <= hi)", "logical_and"),
+    _same("monte_carlo_nees", MC_RET, "    return [bool(lo <= a <= hi) for a in average]", "a list of bools"),
+    _same("monte_carlo_nees", MC_RET, "    return ((average >= lo) & (average <= hi)).astype(int)", "0/1 integers"),
+    _same("monte_carlo_nees", MC_AVG + MC_BOUNDS,
+          "    from scipy.stats import chi2\n    n_runs = nees_runs.shape[0]\n"
+          "    lo, hi = chi2.interval(confidence, dof * n_runs)\n    average = nees_runs.sum(axis=0)\n",
+          "the sum over the runs against the sum's bounds (scipy)"),
 ]
 
 EQUIVALENT_MUTANTS = [
+    Equivalent("monte_carlo_nees", MC_RET, "    return (average > lo) & (average < hi)",
+               reason="strict vs non-strict: no run average of the cases lies within 1e-4 (relative) of "
+                      "a bound, and one exactly on it has probability zero"),
     Equivalent("innovation_gate", GATE_R, "    return bool(value < threshold)",
                reason="< vs ≤: a NIS exactly on the χ² quantile has probability zero, and no case can put "
                       "it there for every correct way of computing the NIS (solve, inv, Cholesky round "
