@@ -308,19 +308,21 @@ FORGERIES = {
     "vars-binds-the-function": ("vars()['sensor_likelihood'] = print",
                                 "binds `sensor_likelihood` through `vars()` instead of writing it"),
     # a function to write that only hands its work to a course function under another name
-    "delegation-to-a-course-function": ("def histogram_predict(belief, transition):\n"
+    "delegation-to-a-course-function": ("from kalman_course.filters.bayes import normalise\n"
+                                        "def histogram_predict(belief, transition):\n"
                                         "    \"\"\"Docstring.\"\"\"\n"
-                                        "    return circular_motion_model(belief, transition)",
-                                        "`histogram_predict` only returns what `circular_motion_model` "
-                                        "(`kalman_course.filters.bayes.circular_motion_model`) returns, "
+                                        "    return normalise(belief)",
+                                        "`histogram_predict` only returns what `normalise` "
+                                        "(`kalman_course.filters.bayes.normalise`) returns, "
                                         "a course function, instead of doing the work"),
     # a function to write that calls a course function its solution does not (the reference of a
     # graded answer under another name, in more than one line)
-    "course-function-the-solution-does-not-call": ("def histogram_predict(belief, transition):\n"
-                                                   "    predicted = circular_motion_model(belief, transition)\n"
+    "course-function-the-solution-does-not-call": ("from kalman_course.filters.bayes import normalise\n"
+                                                   "def histogram_predict(belief, transition):\n"
+                                                   "    predicted = normalise(transition @ belief)\n"
                                                    "    return predicted",
-                                                   "`histogram_predict` calls `circular_motion_model` "
-                                                   "(`kalman_course.filters.bayes.circular_motion_model`), a course "
+                                                   "`histogram_predict` calls `normalise` "
+                                                   "(`kalman_course.filters.bayes.normalise`), a course "
                                                    "function that the exercise's version of it does not use"),
     # signalling the process that runs the grading
     "kill": ("import os, signal\nos.kill(os.getppid(), signal.SIGKILL)",
