@@ -7,7 +7,11 @@
 - per chapter, whole figures built from the vocabulary so that lecture cells stay short:
   :mod:`~kalman_course.plotting.bayes` (01), :mod:`~kalman_course.plotting.gaussians` (02),
   :mod:`~kalman_course.plotting.kf` (03), :mod:`~kalman_course.plotting.eskf` (08),
-  :mod:`~kalman_course.plotting.consistency` (09); also re-exported here.
+  :mod:`~kalman_course.plotting.consistency` (09); also re-exported here;
+- the intuition figures (:mod:`~kalman_course.plotting.intuition`: the Gaussian product
+  of a scalar update, the gain's limits, P and K settling, a cloud through the radar, the
+  IEKF on its cost) and the block diagrams (:mod:`~kalman_course.plotting.diagrams`: the
+  Bayes filter's loop, the ESKF's loop); also re-exported here.
 
 A new chapter's figures go in a new module here, built from the vocabulary; a new kind of
 mark that several chapters draw goes in the vocabulary. Nothing here changes global
@@ -26,6 +30,10 @@ from kalman_course.plotting.kf import plot_kf_1d, plot_kf_2d
 from kalman_course.plotting.eskf import (plot_bias_estimates, plot_bias_sigmas, plot_error_norms, plot_outage_error,
                                          plot_pose_errors, plot_track_with_zoom)
 from kalman_course.plotting.consistency import plot_gating, plot_monte_carlo, plot_sensitivity
+from kalman_course.plotting.intuition import (plot_cost_iterates, plot_gain_convergence, plot_gain_limits,
+                                              plot_gaussian_product, plot_kf_1d_steps, plot_radar_linearisation)
+from kalman_course.plotting.diagrams import (Arrow, Box, Diagram, draw_block_diagram, plot_bayes_filter_diagram,
+                                             plot_eskf_diagram)
 
 __all__ = [
     # vocabulary
@@ -38,4 +46,8 @@ __all__ = [
     "plot_track_with_zoom", "plot_pose_errors", "plot_bias_estimates", "plot_bias_sigmas",
     "plot_outage_error", "plot_error_norms",
     "plot_monte_carlo", "plot_sensitivity", "plot_gating",
+    # intuition figures and block diagrams
+    "plot_gaussian_product", "plot_kf_1d_steps", "plot_gain_limits", "plot_gain_convergence",
+    "plot_radar_linearisation", "plot_cost_iterates",
+    "Box", "Arrow", "Diagram", "draw_block_diagram", "plot_bayes_filter_diagram", "plot_eskf_diagram",
 ]
