@@ -202,7 +202,7 @@ def _blocks_that_differ(value: np.ndarray, expected: np.ndarray, dim: int = 3) -
 def _q_mistakes(T, sigma_a, F, Q):
     """Wrong Q of the CV model a learner writes, each with the hint that names it.
 
-    B is the process-noise Jacobian [T²/2 I; T I] (lecture 03 §5 calls it Γ): how an
+    B is the process-noise Jacobian [T²/2 I; T I]: how an
     acceleration held over the step moves [p, v].
     """
     I = np.eye(3)

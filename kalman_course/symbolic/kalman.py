@@ -233,8 +233,8 @@ def cv_model() -> Derivation:
         """Entry-wise unevaluated integral from 0 to T (evaluated by verify())."""
         return M.applyfunc(lambda e: sp.Integral(e, (var, 0, T)))
 
-    Gamma = sp.Matrix([T**2 / 2, T])
-    G_imm = sp.ImmutableMatrix(Gamma)
+    B = sp.Matrix([T**2 / 2, T])  # the process-noise Jacobian
+    B_imm = sp.ImmutableMatrix(B)
     Q_pw = sigma_a**2 * sp.Matrix([[T**4 / 4, T**3 / 2], [T**3 / 2, T**2]])
     Q_c = q * sp.Matrix([[T**3 / 3, T**2 / 2], [T**2 / 2, T]])
     # exact kinematics under an acceleration a held over one step
@@ -250,21 +250,21 @@ def cv_model() -> Derivation:
                  r"... with $F(0) = I$, so $F(T) = \Phi(T) = e^{A T}$", "identity"),
         Equation("transition_exp", (A * T).exp(), F,
                  r"SymPy's matrix exponential $e^{A T}$ agrees", "check"),
-        Equation("noise_jacobian", integral(Phi_s * L), Gamma,
+        Equation("noise_jacobian", integral(Phi_s * L), B,
                  r"an acceleration held over the step enters through "
-                 r"$\Gamma = \int_0^T \Phi(s) L \, ds$"),
-        Equation("constant_acceleration", F * sp.Matrix([p0, v0]) + Gamma * a, kinematics,
-                 r"$F x + \Gamma a$ is exactly the motion under a constant acceleration $a$"),
-        Equation("Q_piecewise", sp.MatMul(G_imm, sigma_a**2, G_imm.T, evaluate=False), Q_pw,
-                 r"piecewise-constant white acceleration of variance $\sigma_a^2$: "
-                 r"$Q = \Gamma \sigma_a^2 \Gamma^T$"),
+                 r"$B = \int_0^T \Phi(s) L \, ds$"),
+        Equation("constant_acceleration", F * sp.Matrix([p0, v0]) + B * a, kinematics,
+                 r"$F x + B a$ is exactly the motion under a constant acceleration $a$"),
+        Equation("Q_piecewise", sp.MatMul(B_imm, sigma_a**2, B_imm.T, evaluate=False), Q_pw,
+                 r"piecewise-constant white acceleration of variance $\sigma_a^2$ ($Q = \sigma_a^2$): "
+                 r"the prediction adds $B Q B^T$"),
         Equation("Q_continuous", integral(Phi_s * L * q * L.T * Phi_s.T), Q_c,
-                 r"continuous white acceleration of spectral density $q$: "
-                 r"$Q = \int_0^T \Phi(s) L q L^T \Phi(s)^T ds$"),
+                 r"continuous white acceleration of spectral density $q$: the prediction adds "
+                 r"$\int_0^T \Phi(s) L q L^T \Phi(s)^T ds$"),
         Equation("Q_piecewise_rank", sp.Determinant(sp.ImmutableMatrix(Q_pw)), sp.Integer(0),
-                 r"the piecewise $Q$ has rank one: a single acceleration moves $p$ and $v$ together"),
+                 r"the piecewise $B Q B^T$ has rank one: a single acceleration moves $p$ and $v$ together"),
         Equation("Q_continuous_det", sp.Determinant(sp.ImmutableMatrix(Q_c)), q**2 * T**4 / 12,
-                 r"the continuous $Q$ is positive definite for $T > 0$"),
+                 r"the continuous one is positive definite for $T > 0$"),
     ]
     return Derivation(
         name="cv_model",
@@ -277,7 +277,7 @@ def cv_model() -> Derivation:
                r"every matrix becomes $M \otimes I_d$."),
         equations=tuple(equations),
         symbols={"T": T, "sigma_a": sigma_a, "q": q},
-        results={"F": F, "Gamma": Gamma, "Q_piecewise": Q_pw, "Q_continuous": Q_c},
+        results={"F": F, "B": B, "Q_piecewise": Q_pw, "Q_continuous": Q_c},
     )
 
 
@@ -292,7 +292,7 @@ def _cv_functions() -> dict[str, Callable]:
     T, sigma_a, q = d.symbols["T"], d.symbols["sigma_a"], d.symbols["q"]
     return {
         "F": lambdify_matrix((T,), d.results["F"]),
-        "Gamma": lambdify_matrix((T,), d.results["Gamma"]),
+        "B": lambdify_matrix((T,), d.results["B"]),
         "Q_piecewise": lambdify_matrix((T, sigma_a), d.results["Q_piecewise"]),
         "Q_continuous": lambdify_matrix((T, q), d.results["Q_continuous"]),
     }
@@ -339,7 +339,7 @@ def cv_noise_jacobian(T, dim: int = 1) -> np.ndarray:
         the blocked state. ``B @ (sigma_a**2 * I) @ B.T`` equals :func:`cv_process_noise`.
     """
     T, dim = as_time_step(T), as_dimension(dim)
-    return _per_axis(_cv_functions()["Gamma"](T), dim)
+    return _per_axis(_cv_functions()["B"](T), dim)
 
 
 def cv_process_noise(T, sigma_a, dim: int = 1) -> np.ndarray:
