@@ -7,6 +7,8 @@ into cached numpy functions that the filters use. The modules, by topic:
 =================  =========================================================================
 ``equations``      :class:`Equation`, :class:`Derivation`, the zero test, explicit symbolic
                    matrices, the :func:`derivation_builder` decorator
+``stepwise``       :class:`Step`: an equation displayed in compact form (δv̇, [a]×, Exp(δθ))
+                   and proved on its explicit model, for derivations shown line by line
 ``registry``       :func:`derivations` and :func:`derivation`: every builder of the topic
                    modules, in course order
 ``gaussians``      Schur block inverse, moments of a linear map, Gaussian conditioning (02)
