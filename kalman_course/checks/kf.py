@@ -608,6 +608,23 @@ def _initial_state_hint(x0, P0, y0, sigma_gnss, sigma_v0=SIGMA_V0) -> str | None
             + "; ".join(parts))
 
 
+def _same_run(x_hat, P_hat, x_ref, P_ref) -> bool:
+    """Whether a run (or one row of it) is the reference: rtol 1e-6, atol 1e-6 m for x and
+    1e-9 for P (see :func:`check_gnss_kf_run`)."""
+    return bool(np.allclose(x_hat, x_ref, rtol=1e-6, atol=1e-6) and np.allclose(P_hat, P_ref, rtol=1e-6, atol=1e-9))
+
+
+def _reject_known_run_mistakes(x_hat, P_hat, y, sigma_gnss, mistakes, where: str) -> None:
+    """Raise CheckFailed if a run's initial state is wrong or the run is one of ``mistakes``
+    (((x_hat, P_hat), hint) pairs); return if it is none of them."""
+    initial = _initial_state_hint(x_hat[0], P_hat[0], y[0], sigma_gnss)
+    if initial is not None:
+        raise CheckFailed(f"row 0 of x_hat / P_hat on {where} is wrong. Hint: {initial}")
+    for (x_wrong, P_wrong), why in mistakes:
+        if _same_run(x_hat, P_hat, x_wrong, P_wrong):
+            raise CheckFailed(f"the run on {where} is wrong. Hint: {why}")
+
+
 def truth_at(name: str, t):
     """Ground-truth positions of excerpt ``name`` interpolated at times ``t``, shape (N, 3)."""
     truth = load_kitti(name).truth
@@ -640,18 +657,10 @@ def check_gnss_kf_run(run_gnss_kf):
                                   f"Hint: {rows}")
         x_hat = expect_shape(x_res, x_ref.shape, "x_hat")
         P_hat = expect_shape(P_res, P_ref.shape, "P_hat")
-        # rtol 1e-6, atol 1e-6 m (x) and 1e-9 (P): see the docstring
-        if np.allclose(x_hat, x_ref, rtol=1e-6, atol=1e-6) and \
-                np.allclose(P_hat, P_ref, rtol=1e-6, atol=1e-9):
+        if _same_run(x_hat, P_hat, x_ref, P_ref):
             continue
-        initial = _initial_state_hint(x_hat[0], P_hat[0], y[0], sigma_gnss)
-        if initial is not None:
-            raise CheckFailed(f"row 0 of x_hat / P_hat on the '{name}' excerpt is wrong. Hint: {initial}")
-        for x_wrong, P_wrong, why in ((*run, why) for run, why in _run_mistakes(t, y, sigma_a, sigma_gnss)):
-            if np.allclose(x_hat, x_wrong, rtol=1e-6, atol=1e-6) and \
-                    np.allclose(P_hat, P_wrong, rtol=1e-6, atol=1e-9):
-                raise CheckFailed(f"the run on the '{name}' excerpt (σ_a = {sigma_a}, σ_gnss = "
-                                  f"{sigma_gnss}) is wrong. Hint: {why}")
+        _reject_known_run_mistakes(x_hat, P_hat, y, sigma_gnss, _run_mistakes(t, y, sigma_a, sigma_gnss),
+                                   f"the '{name}' excerpt (σ_a = {sigma_a}, σ_gnss = {sigma_gnss})")
         truth = truth_at(name, t)
         # 3-D position RMSE = norm of the per-axis RMSEs (NaN in a learner's x_hat stays NaN)
         err = np.linalg.norm(rmse(x_hat[:, :3], truth, axis=0))
@@ -812,21 +821,11 @@ def check_gnss_kf_gaps(run_gnss_kf_gaps):
                                   f"Hint: {why}")
         x_hat = expect_shape(x_res, x_ref.shape, "x_hat")
         P_hat = expect_shape(P_res, P_ref.shape, "P_hat")
-        # rtol 1e-6, atol 1e-6 m (x) and 1e-9 (P): see the docstring
-        if np.allclose(x_hat, x_ref, rtol=1e-6, atol=1e-6) and \
-                np.allclose(P_hat, P_ref, rtol=1e-6, atol=1e-9):
+        if _same_run(x_hat, P_hat, x_ref, P_ref):
             continue
-        initial = _initial_state_hint(x_hat[0], P_hat[0], y[0], sigma_gnss)
-        if initial is not None:
-            raise CheckFailed(f"row 0 of x_hat / P_hat on the '{name}' excerpt is wrong. Hint: {initial}")
-        for (x_wrong, P_wrong), why in _gaps_mistakes(t, y, sigma_a, sigma_gnss):
-            if np.allclose(x_hat, x_wrong, rtol=1e-6, atol=1e-6) and \
-                    np.allclose(P_hat, P_wrong, rtol=1e-6, atol=1e-9):
-                raise CheckFailed(f"the run on the '{name}' excerpt with missing fixes is wrong. "
-                                  f"Hint: {why}")
-        wrong_rows = [k for k in range(N) if not (
-            np.allclose(x_hat[k], x_ref[k], rtol=1e-6, atol=1e-6)
-            and np.allclose(P_hat[k], P_ref[k], rtol=1e-6, atol=1e-9))]
+        _reject_known_run_mistakes(x_hat, P_hat, y, sigma_gnss, _gaps_mistakes(t, y, sigma_a, sigma_gnss),
+                                   f"the '{name}' excerpt with missing fixes")
+        wrong_rows = [k for k in range(N) if not _same_run(x_hat[k], P_hat[k], x_ref[k], P_ref[k])]
         first = wrong_rows[0]
         where = (f"row {first} is a missing fix: there the posterior is the prior, predicted to "
                  f"t[{first}] over its own time step" if first in missing else
