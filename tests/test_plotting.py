@@ -419,3 +419,83 @@ def test_track_with_zoom_has_two_panels_and_checks_zoom():
         plotting.plot_track_with_zoom(xy, xy, zoom=((5, 2), (0, 1)))
     with pytest.raises(ValueError, match="zoom"):
         plotting.plot_track_with_zoom(xy, xy, zoom=(1, 2))
+
+
+# --------------------------------------------------------------------------------------
+# issue 15, item 5: what a look at every figure found
+# --------------------------------------------------------------------------------------
+
+def _extent(artist):
+    fig = artist.figure
+    fig.canvas.draw()
+    return artist.get_window_extent(fig.canvas.get_renderer())
+
+
+def _overlap(a, b):
+    return a.x0 < b.x1 and b.x0 < a.x1 and a.y0 < b.y1 and b.y0 < a.y1
+
+
+def test_kf_2d_error_legend_sits_outside_the_error_panels():
+    # the ±3σ band fills the error panels, so a legend inside them covers it
+    n = 30
+    t = np.arange(n, dtype=float)
+    x_hat = np.column_stack([t, 2 * t, np.ones(n), np.ones(n)])
+    hist = FakeHistory(x_hat, np.tile(np.diag([0.5, 0.3, 0.1, 0.1]), (n, 1, 1)))
+    fig = plotting.plot_kf_2d(t, x_hat[:, :2] + 0.2, x_hat[:, :2] - 0.3, hist)
+    ax_e1, ax_e2 = fig.axes[1], fig.axes[2]
+    legend = _extent(ax_e1.get_legend())
+    for ax in (ax_e1, ax_e2):
+        assert not _overlap(legend, _extent(ax)), "the error legend covers an error panel"
+    labels = [text.get_text() for text in ax_e1.get_legend().get_texts()]
+    assert labels == ["±3σ", "error"]
+
+
+def test_consistency_curves_take_one_line_style_per_curve(ax):
+    t = np.arange(10.0)
+    same = np.full(10, 6.0)
+    lines, _ = plotting.plot_consistency_curves(ax, t, {"a": same, "b": same}, 1.2, 14.4, linestyles=("-", "--"))
+    assert [line.get_linestyle() for line in lines] == ["-", "--"]
+    lines, _ = plotting.plot_consistency_curves(ax, t, {"c": same, "d": same}, 1.2, 14.4)
+    assert [line.get_linestyle() for line in lines] == ["-", "-"]       # default unchanged: solid
+    with pytest.raises(ValueError, match="linestyles"):
+        plotting.plot_consistency_curves(ax, t, {"a": same, "b": same}, 1.2, 14.4, linestyles=("-",))
+
+
+def test_monte_carlo_curves_that_coincide_both_show():
+    # identical NIS of two tunings: the second must not hide the first (a dashed line over a solid one)
+    fig = plotting.plot_monte_carlo({"tuned Q": _MC(1.0), "Q / 100": _MC(4.0)})
+    for ax in fig.axes:
+        first, second = ax.lines
+        assert first.get_linestyle() == "-" and second.get_linestyle() not in ("-", "None")
+
+
+def test_sensitivity_figure_labels_its_axes_and_keeps_black_for_the_truth():
+    from types import SimpleNamespace as Row
+    rows = [Row(q_factor=f, ape_position=0.1, ape_attitude_deg=0.05, nis=6.0, nees_pose=6.0) for f in (0.1, 1.0)]
+    fig = plotting.plot_sensitivity({"Q factor": ("q_factor", rows)}, (5.5, 6.5))
+    top, bottom = fig.axes
+    assert "[m]" in top.get_ylabel() and "[deg]" in top.get_ylabel()
+    assert "NIS" in bottom.get_ylabel() and "NEES" in bottom.get_ylabel()
+    for ax in fig.axes:
+        for line in ax.lines:
+            if line.get_label().startswith("_"):
+                continue                                   # the unlabelled reference line at 6
+            assert to_rgba(line.get_color()) != to_rgba(COLORS["truth"]), f"{line.get_label()} is drawn in black"
+
+
+def test_gating_legends_sit_beside_the_panels():
+    # an error peak in the upper right corner, where a legend inside the panel would sit
+    t = np.linspace(0.0, 10.0, 101)
+    peak = np.where(t > 9.0, 5.0, 0.1)
+    fig = plotting.plot_gating({"ungated": (t, peak), "gated (99 %)": (t, t * 0 + 0.1)},
+                               t, np.where(t < 1.0, 300.0, 5.0), 16.81, outlier_times=[9.5])
+    for ax in fig.axes:
+        assert not _overlap(_extent(ax.get_legend()), _extent(ax)), "a legend covers a panel of the gating figure"
+
+
+def test_kf_1d_steps_density_label_carries_the_inverse_unit_of_the_state():
+    from types import SimpleNamespace as Table
+    table = Table(x_check=np.array([0.0, 1.2]), P_check=np.array([2.0, 0.5]), y=np.array([1.5, 2.1]),
+                  K=np.array([0.8, 0.5]), x_hat=np.array([1.2, 1.65]), P_hat=np.array([0.4, 0.25]), r=0.5)
+    assert plotting.plot_kf_1d_steps(table, steps=[0, 1]).axes[0].get_ylabel() == "density [1/m]"
+    assert plotting.plot_kf_1d_steps(table, steps=[0, 1], unit="m/s").axes[0].get_ylabel() == "density [1/(m/s)]"

@@ -12,10 +12,13 @@ from __future__ import annotations
 import numpy as np
 
 from kalman_course.evaluation.metrics import chi2_bounds
-from kalman_course.plotting.vocabulary import (COLORS, _bounds, _vector, plot_consistency_curves,
+from kalman_course.plotting.vocabulary import (COLORS, CURVE_COLORS, _bounds, _vector, plot_consistency_curves,
                                                plot_curves, shade_spans)
 
 __all__ = ["plot_monte_carlo", "plot_sensitivity", "plot_gating"]
+
+#: Line styles of the compared experiments, in order (the first solid).
+_LINESTYLES = ("-", (0, (5, 3)), ":", "-.")
 
 
 def plot_monte_carlo(runs, *, dofs=(("nees", 15), ("nis", 6)), colors=None, figsize=(11, 3.6)):
@@ -26,7 +29,9 @@ def plot_monte_carlo(runs, *, dofs=(("nees", 15), ("nis", 6)), colors=None, figs
     runs : mapping of str to MonteCarloResult
         Legend label -> experiment (uses ``.t``, ``.n_runs`` and the fields named in
         ``dofs``, each (n_runs, K)). All must share ``t`` and ``n_runs``; the interval is
-        ``chi2_bounds(dof, n_runs)``.
+        ``chi2_bounds(dof, n_runs)``. The first experiment is drawn solid, the later ones
+        dashed or dotted, so that curves lying on top of each other (the NIS of two
+        tunings, say) all stay visible.
     dofs : sequence of (str, int)
         One panel per (field, degrees of freedom).
     colors : sequence of colour, optional
@@ -51,7 +56,8 @@ def plot_monte_carlo(runs, *, dofs=(("nees", 15), ("nis", 6)), colors=None, figs
     for ax, (field, dof) in zip(axes[0], dofs):
         lo, hi = chi2_bounds(dof, n_runs)
         curves = {label: np.asarray(getattr(mc, field)).mean(axis=0) for label, mc in runs.items()}
-        plot_consistency_curves(ax, t, curves, lo, hi, colors=colors)
+        plot_consistency_curves(ax, t, curves, lo, hi, colors=colors,
+                                linestyles=[_LINESTYLES[k % len(_LINESTYLES)] for k in range(len(curves))])
         ax.set(xlabel="t [s]", title=f"{field.upper()} averaged over {n_runs} runs (χ²({dof}))")
         ax.legend(loc="upper left", fontsize=8)    # a growing NEES leaves through the upper right
     axes[0, 0].set_ylabel("average")
@@ -90,7 +96,8 @@ def plot_sensitivity(sweeps, nis_bounds, *, figsize=(11, 6)):
         x = [float(getattr(r, key)) for r in rows]
         top, bottom = axes[0, col], axes[1, col]
         top.plot(x, [r.ape_position for r in rows], "o-", color=COLORS["estimate"], label="position APE [m]")
-        top.plot(x, [r.ape_attitude_deg for r in rows], "s--", color=COLORS["truth"], label="attitude APE [deg]")
+        # not black: black is the truth's colour everywhere in the course
+        top.plot(x, [r.ape_attitude_deg for r in rows], "s--", color=CURVE_COLORS[2], label="attitude APE [deg]")
         top.set(xscale="log", title=f"accuracy against the {name}")
         top.legend(fontsize=8)
         bottom.axhspan(lo, hi, color=COLORS["band"], alpha=0.5, lw=0, label="95 % interval of the mean NIS")
@@ -103,6 +110,8 @@ def plot_sensitivity(sweeps, nis_bounds, *, figsize=(11, 6)):
             ax.minorticks_off()
             ax.set_xticks(x, [f"{v:g}" for v in x])
         bottom.set_yticks([1.5, 3, 6, 12, 24], ["1.5", "3", "6", "12", "24"])
+    axes[0, 0].set_ylabel("APE: position [m], attitude [deg]")
+    axes[1, 0].set_ylabel("mean NIS and pose NEES")
     fig.tight_layout()
     return fig
 
@@ -146,10 +155,11 @@ def plot_gating(errors, t_nis, nis, threshold, outlier_times=(), *, colors=(COLO
                     color=COLORS["marker"], alpha=0.15)
     plot_curves(ax1, errors, colors=colors)
     ax1.set(ylabel="position error [m]", title="shaded: map-matching failures")
-    ax1.legend()
+    # both legends beside the panels: the errors peak and the rejected NIS sit high up anywhere in the run
+    ax1.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     ax2.semilogy(t_nis, nis, ".", ms=3, color=COLORS["estimate"], label="NIS against the prior")
     ax2.axhline(threshold, color=COLORS["truth"], lw=0.8, label=f"gate {threshold:.2f}")
     ax2.set(xlabel="t [s]", ylabel="NIS")
-    ax2.legend(loc="upper left")    # the rejected outliers sit high up, across the whole run
+    ax2.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     fig.tight_layout()
     return fig

@@ -146,7 +146,7 @@ def plot_kf_1d_steps(table, *, steps=None, unit="m", figsize=None):
                               (arrays["x_hat"][k], arrays["P_hat"][k]), previous=previous, legend=False)
         ax.set_title(f"step {k}: P̌ = {arrays['P_check'][k]:.3g}, K = {arrays['K'][k]:.3g}", fontsize=10)
         ax.set_xlabel(f"x [{unit}]")
-    axes[0][0].set_ylabel("density")
+    axes[0][0].set_ylabel(f"density [1/{f'({unit})' if '/' in unit else unit}]")    # a density of x has unit 1/[x]
     handles, labels = [], []
     for ax in axes[0]:
         for h, lab in zip(*ax.get_legend_handles_labels()):

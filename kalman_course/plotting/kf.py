@@ -136,7 +136,8 @@ def plot_kf_2d(t, truth_xy, meas_xy, hist, *, indices=(0, 1), n_sigma=3, ellipse
         plot_error_with_band(ax, t, x_hat[:, k] - truth_xy[:, col],
                              np.sqrt(np.clip(P_hat[:, k, k], 0, None)), n_sigma)
         ax.set_ylabel(f"{name} error [m]")
-    ax_e1.legend(loc="upper right", fontsize=8)
+    # above the error panels, not inside: the band fills them from the first seconds on
+    ax_e1.legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=2, fontsize=8, frameon=False)
     ax_e2.set_xlabel("t [s]")
     fig.tight_layout()
     return fig

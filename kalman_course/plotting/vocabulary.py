@@ -406,7 +406,8 @@ def plot_consistency(ax, t, values, lo, hi, *, label="NEES", **kwargs):
     return line, band
 
 
-def plot_consistency_curves(ax, t, curves, lo, hi, *, log=True, band_label=None, colors=None, lw=1.0):
+def plot_consistency_curves(ax, t, curves, lo, hi, *, log=True, band_label=None, colors=None, lw=1.0,
+                            linestyles=None):
     """Draw several runs of a consistency statistic over one shaded chi-square interval.
 
     For comparing settings: the NEES of a well-tuned and a badly tuned filter, or of
@@ -431,6 +432,9 @@ def plot_consistency_curves(ax, t, curves, lo, hi, *, log=True, band_label=None,
         One per curve; default :data:`CURVE_COLORS` in order.
     lw : float
         Line width of the curves.
+    linestyles : sequence of Matplotlib line styles, optional
+        One per curve; default all solid. Give the later curves dashes (``("-", "--")``)
+        when they may lie on top of the earlier ones, so that every curve stays visible.
 
     Returns
     -------
@@ -444,12 +448,15 @@ def plot_consistency_curves(ax, t, curves, lo, hi, *, log=True, band_label=None,
     colors = CURVE_COLORS if colors is None else tuple(colors)
     if len(colors) < len(curves):
         raise ValueError(f"colors must give one colour per curve ({len(curves)}), got {len(colors)}")
+    linestyles = ("-",) * len(curves) if linestyles is None else tuple(linestyles)
+    if len(linestyles) < len(curves):
+        raise ValueError(f"linestyles must give one line style per curve ({len(curves)}), got {len(linestyles)}")
     band = ax.fill_between(t, lo, hi, color=COLORS["band"], alpha=0.5, lw=0,
                            label=band_label or f"95 % interval [{lo:.3g}, {hi:.3g}]")
     lines = []
-    for (label, values), color in zip(curves.items(), colors):
+    for (label, values), color, style in zip(curves.items(), colors, linestyles):
         values = _vector(values, f"curves[{label!r}]", allow_nan=True, n=t.shape[0])
-        (line,) = ax.plot(t, values, color=color, lw=lw, label=label)
+        (line,) = ax.plot(t, values, color=color, lw=lw, ls=style, label=label)
         lines.append(line)
     if log:
         ax.set_yscale("log")
