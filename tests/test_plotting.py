@@ -333,14 +333,32 @@ def test_bias_figures():
         def std(self):
             return self._std
 
-    fig = plotting.plot_bias_sigmas({"random walk": Run(1.0), "constant": Run(0.5)})
+    labels = [text.get_text() for text in fig.axes[1].get_legend().get_texts()]
+    assert labels == ["b_ω x", "b_ω y", "b_ω z"] and fig.axes[1].get_ylabel() == "b_ω [deg/h]"
+    # the legends sit beside the axes, not on the curves
+    assert all(ax.get_legend().get_bbox_to_anchor().x0 > ax.get_window_extent().x1 - 1 for ax in fig.axes)
+
+    # two runs whose σ coincide must both show: the second one dashed
+    fig = plotting.plot_bias_sigmas({"random walk": Run(1.0), "constant": Run(1.0)})
     assert [len(ax.lines) for ax in fig.axes] == [2, 2]
+    assert all(ax.lines[0].get_linestyle() == "-" and ax.lines[1].get_linestyle() != "-" for ax in fig.axes)
     assert all(ax.get_yscale() == "log" for ax in fig.axes)
+    assert fig.axes[0].get_ylabel() == "σ of b_a [m/s²]"
     assert fig.axes[0].get_title().endswith(", z")
     with pytest.raises(ValueError, match="axis"):
         plotting.plot_bias_sigmas({"a": Run(1.0)}, axis=3)
     with pytest.raises(ValueError, match="results"):
         plotting.plot_bias_sigmas({"a": object()})
+
+
+def test_curves_take_one_line_style_each():
+    fig, ax = plt.subplots()
+    t = np.arange(5.0)
+    lines = plotting.plot_curves(ax, {"a": (t, t), "b": (t, t)}, linestyles=["-", "--"])
+    assert [line.get_linestyle() for line in lines] == ["-", "--"]
+    with pytest.raises(ValueError, match="linestyles"):
+        plotting.plot_curves(ax, {"a": (t, t), "b": (t, t)}, linestyles=["-"])
+    plt.close(fig)
 
 
 def test_outage_and_error_norm_figures():

@@ -115,9 +115,9 @@ def plot_pose_errors(t, position_error, attitude_error, std, *, n_sigma=3, figsi
     fig, axes = plt.subplots(2, 3, figsize=figsize, sharex=True)
     for i, axis in enumerate(_AXES):
         plot_error_with_band(axes[0, i], t, position_error[:, i], std[:, i], n_sigma)
-        axes[0, i].set(title=f"position error {axis}", ylabel="m")
+        axes[0, i].set(title=f"position error {axis}", ylabel="error [m]")
         plot_error_with_band(axes[1, i], t, np.rad2deg(attitude_error[:, i]), np.rad2deg(std[:, 6 + i]), n_sigma)
-        axes[1, i].set(title=f"attitude error {axis}", ylabel="deg", xlabel="t [s]")
+        axes[1, i].set(title=f"attitude error {axis}", ylabel="error [deg]", xlabel="t [s]")
     axes[0, 0].legend()
     fig.tight_layout()
     return fig
@@ -149,11 +149,11 @@ def plot_bias_estimates(t, accel_bias, gyro_bias, *, figsize=(12, 3.5)):
     fig, axes = plt.subplots(1, 2, figsize=figsize)
     for i, axis in enumerate(_AXES):
         axes[0].plot(t, accel_bias[:, i], color=CURVE_COLORS[i], label=f"b_a {axis}")
-        axes[1].plot(t, gyro_bias[:, i] * _RAD_PER_S_TO_DEG_PER_H, color=CURVE_COLORS[i], label=f"b_w {axis}")
-    axes[0].set(xlabel="t [s]", ylabel="m/s²", title="accelerometer bias estimate")
-    axes[1].set(xlabel="t [s]", ylabel="deg/h", title="gyroscope bias estimate")
+        axes[1].plot(t, gyro_bias[:, i] * _RAD_PER_S_TO_DEG_PER_H, color=CURVE_COLORS[i], label=f"b_ω {axis}")
+    axes[0].set(xlabel="t [s]", ylabel="b_a [m/s²]", title="accelerometer bias estimate")
+    axes[1].set(xlabel="t [s]", ylabel="b_ω [deg/h]", title="gyroscope bias estimate")
     for ax in axes:
-        ax.legend()
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)  # beside the curves
     fig.tight_layout()
     return fig
 
@@ -188,10 +188,12 @@ def plot_bias_sigmas(results, *, axis=2, figsize=(12, 3.5)):
         accel[label] = (result.t, std[:, 9 + axis])
         gyro[label] = (result.t, std[:, 12 + axis] * _RAD_PER_S_TO_DEG_PER_H)
     fig, axes = plt.subplots(1, 2, figsize=figsize)
-    plot_curves(axes[0], accel)
-    plot_curves(axes[1], gyro)
-    axes[0].set(xlabel="t [s]", ylabel="m/s²", title=f"σ of the accelerometer bias, {_AXES[axis]}")
-    axes[1].set(xlabel="t [s]", ylabel="deg/h", title=f"σ of the gyroscope bias, {_AXES[axis]}")
+    # runs may coincide for most of the time: later runs dashed so that every one shows
+    styles = ["-", (0, (5, 3)), (0, (1, 2)), (0, (6, 2, 1, 2))] * len(results)
+    plot_curves(axes[0], accel, linestyles=styles, lw=1.5)
+    plot_curves(axes[1], gyro, linestyles=styles, lw=1.5)
+    axes[0].set(xlabel="t [s]", ylabel="σ of b_a [m/s²]", title=f"σ of the accelerometer bias, {_AXES[axis]}")
+    axes[1].set(xlabel="t [s]", ylabel="σ of b_ω [deg/h]", title=f"σ of the gyroscope bias, {_AXES[axis]}")
     for ax in axes:
         ax.set_yscale("log")
         ax.legend()
@@ -248,8 +250,8 @@ def plot_outage_error(t, error, sigma, outage, *, n_sigma=3, title="", label="ho
     half = 0.5 * np.asarray(sigma, dtype=float)
     plot_sigma_band(ax, t, n_sigma * half, half, n_sigma, label=f"0 to {n_sigma:g}σ")
     ax.plot(t, error, color=COLORS["estimate"], lw=1.0, label=label)
-    ax.set(xlabel="t [s]", ylabel="m", title=title, ylim=(0, None))
-    ax.legend()
+    ax.set(xlabel="t [s]", ylabel=f"{label} [m]", title=title, ylim=(0, None))
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the axes: the band fills the top
     fig.tight_layout()
     return fig
 

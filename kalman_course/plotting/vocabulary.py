@@ -555,7 +555,7 @@ def flag_spans(t, flags) -> np.ndarray:
     return np.column_stack([t[first], t[last]]) if first.size else np.empty((0, 2))
 
 
-def plot_curves(ax, curves, *, colors=None, lw=1.0):
+def plot_curves(ax, curves, *, colors=None, linestyles=None, lw=1.0):
     """Draw several curves, each with its own abscissa, in the course's comparison colours.
 
     Parameters
@@ -566,6 +566,8 @@ def plot_curves(ax, curves, *, colors=None, lw=1.0):
         Legend label -> (t, values); NaN values are skipped. At least one.
     colors : sequence of colour, optional
         One per curve; default :data:`CURVE_COLORS` in order.
+    linestyles : sequence of Matplotlib line styles, optional
+        One per curve (dashes keep a curve visible where it lies on another); default solid.
     lw : float
         Line width.
 
@@ -579,13 +581,16 @@ def plot_curves(ax, curves, *, colors=None, lw=1.0):
     colors = CURVE_COLORS if colors is None else tuple(colors)
     if len(colors) < len(curves):
         raise ValueError(f"colors must give one colour per curve ({len(curves)}), got {len(colors)}")
+    linestyles = ("-",) * len(curves) if linestyles is None else tuple(linestyles)
+    if len(linestyles) < len(curves):
+        raise ValueError(f"linestyles must give one line style per curve ({len(curves)}), got {len(linestyles)}")
     lines = []
-    for (label, pair), color in zip(curves.items(), colors):
+    for (label, pair), color, style in zip(curves.items(), colors, linestyles):
         if len(pair) != 2:
             raise ValueError(f"curves[{label!r}] must be a pair (t, values)")
         t = _vector(pair[0], f"curves[{label!r}] t")
         values = _vector(pair[1], f"curves[{label!r}] values", allow_nan=True, n=t.shape[0])
-        (line,) = ax.plot(t, values, color=color, lw=lw, label=label)
+        (line,) = ax.plot(t, values, color=color, linestyle=style, lw=lw, label=label)
         lines.append(line)
     return lines
 
