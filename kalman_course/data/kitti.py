@@ -12,7 +12,11 @@ Every stream is on one clock and in one frame:
   (w, x, y, z), Hamilton, w ≥ 0.
 
 The lidar map-matching poses are **simulated**: ground truth plus seeded noise
-(``simulate_lidar_poses``); KITTI has no such stream. The noisy GNSS copy is simulated as
+(``simulate_lidar_poses``); KITTI has no such stream. The shipped excerpts hold white
+noise (σ 0.2 m, 0.3°); ``simulate_lidar_poses(..., errors=...)`` draws other, equally
+simulated errors from :mod:`kalman_course.data.observation_errors` (Gauss–Markov errors
+correlated in time, map-matching jumps and outliers), and the record says which
+(``LidarData.error_model``, ``LidarData.failures``). The noisy GNSS copy is simulated as
 well (``simulate_gnss``). Data: KITTI (Geiger et al., IJRR 2013), CC BY-NC-SA 3.0.
 
 What a filter may see: ``ex.lidar`` is a :class:`~kalman_course.core.observations.PoseObservations`
@@ -38,6 +42,7 @@ from kalman_course.core import so3
 from kalman_course.core.imu import NavState, NavTrajectory
 from kalman_course.core.observations import PoseObservations, PositionObservations
 from kalman_course.core.validation import as_scalar, as_seed
+from kalman_course.data.observation_errors import ObservationErrors, WhiteErrors
 
 __all__ = [
     "EXCERPTS", "SCHEMA_VERSION", "ImuData", "GnssData", "TruthData", "LidarData", "SlamData",
@@ -249,9 +254,12 @@ class TruthData:
 class LidarData(PoseObservations):
     """Simulated lidar map-matching pose observations at the ground-truth times (~10 Hz).
 
-    Made from the truth as ``p_obs = p + σ_p n_p`` and ``R_obs = R Exp(σ_θ n_θ)`` with
-    n_p, n_θ ~ N(0, I₃) drawn in that order from ``default_rng(seed)`` (see
-    :func:`simulate_lidar_poses`). KITTI has no such stream.
+    Made from the truth as ``p_obs = p + δp`` and ``R_obs = R Exp(δθ)`` (the attitude
+    error on the right, in the body frame), with the errors [δp, δθ] drawn from
+    ``default_rng(seed)`` by an error model of
+    :mod:`kalman_course.data.observation_errors` (see :func:`simulate_lidar_poses`). The
+    shipped excerpts use white errors, δp = σ_p n_p and δθ = σ_θ n_θ with n_p, n_θ ~
+    N(0, I₃) drawn in that order. KITTI has no such stream: every error here is simulated.
 
     It is a :class:`~kalman_course.core.observations.PoseObservations` (validated on
     construction, read-only arrays), so it goes to a filter as it is.
@@ -267,13 +275,19 @@ class LidarData(PoseObservations):
     quaternion : numpy.ndarray, shape (K, 4)
         The same attitude as (w, x, y, z), w ≥ 0.
     sigma_position : float
-        σ_p, position noise per axis, m.
+        σ_p, position noise per axis, m (for map-matching failures: of the base model).
     sigma_attitude_deg : float
-        σ_θ, attitude noise per axis of the rotation vector, degrees.
+        σ_θ, attitude noise per axis of the rotation vector, degrees (likewise).
     seed : int
         The generator's seed.
     simulated : bool
         Always True.
+    error_model : str
+        The error model's ``describe()``: "white" (the shipped excerpts), e.g.
+        "Gauss–Markov, τ = 1 s", or a base model plus jumps and outliers.
+    failures : numpy.ndarray of bool, shape (K,), or None
+        For map-matching failures, True at the observations a jump or an outlier touched
+        (read-only); None for models without failures.
     """
 
     quaternion: np.ndarray
@@ -281,6 +295,8 @@ class LidarData(PoseObservations):
     sigma_attitude_deg: float
     seed: int
     simulated: bool = True
+    error_model: str = "white"
+    failures: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -290,6 +306,15 @@ class LidarData(PoseObservations):
                              f"got shape {q.shape}")
         q.setflags(write=False)
         object.__setattr__(self, "quaternion", q)
+        if not isinstance(self.error_model, str) or not self.error_model:
+            raise ValueError(f"error_model must be a non-empty string, got {self.error_model!r}")
+        if self.failures is not None:
+            mask = np.array(self.failures)
+            if mask.dtype != bool or mask.shape != (len(self),):
+                raise ValueError(f"failures must be None or a boolean array of shape ({len(self)},), "
+                                 f"got dtype {mask.dtype} and shape {mask.shape}")
+            mask.setflags(write=False)
+            object.__setattr__(self, "failures", mask)
 
     @property
     def sigma_attitude(self) -> float:
@@ -433,13 +458,16 @@ def _rotations_of(record, name: str) -> np.ndarray:
 
 
 def simulate_lidar_poses(truth, seed: int, sigma_position: float = 0.2,
-                         sigma_attitude_deg: float = 0.3) -> LidarData:
+                         sigma_attitude_deg: float = 0.3, *, errors: ObservationErrors | None = None
+                         ) -> LidarData:
     """Simulate lidar map-matching pose observations from true poses.
 
-    ``p_obs = p + σ_p n_p`` and ``R_obs = R Exp(σ_θ n_θ)`` (noise on the right, in the
-    body frame), with n_p then n_θ, each (K, 3) standard normal, drawn from
-    ``numpy.random.default_rng(seed)``. The shipped excerpts hold the draw for their stored
-    seed, so ``simulate_lidar_poses(ex.truth, ex.lidar.seed)`` reproduces ``ex.lidar``.
+    ``p_obs = p + δp`` and ``R_obs = R Exp(δθ)`` (the attitude error on the right, in the
+    body frame), with the errors [δp, δθ] (K, 6) drawn by ``errors.draw(t,
+    numpy.random.default_rng(seed))``. The default is white noise, δp = σ_p n_p and
+    δθ = σ_θ n_θ with n_p then n_θ, each (K, 3) standard normal: the shipped excerpts hold
+    that draw for their stored seed, so ``simulate_lidar_poses(ex.truth, ex.lidar.seed)``
+    reproduces ``ex.lidar``.
 
     Parameters
     ----------
@@ -449,17 +477,33 @@ def simulate_lidar_poses(truth, seed: int, sigma_position: float = 0.2,
     seed : int
         Seed for ``numpy.random.default_rng``.
     sigma_position : float
-        σ_p per axis, m.
+        σ_p per axis, m, of the white noise used when ``errors`` is None.
     sigma_attitude_deg : float
-        σ_θ per axis of the attitude noise rotation vector, degrees.
+        σ_θ per axis of the attitude noise rotation vector, degrees, likewise.
+    errors : ObservationErrors, keyword-only, optional
+        The error model: :class:`~kalman_course.data.observation_errors.WhiteErrors`,
+        :class:`~kalman_course.data.observation_errors.GaussMarkovErrors` or
+        :class:`~kalman_course.data.observation_errors.MapMatchingFailures`. None means
+        ``WhiteErrors(sigma_position, sigma_attitude_deg)``. When given, it sets the noise
+        size: leave ``sigma_position`` and ``sigma_attitude_deg`` at their defaults or
+        equal to the model's.
 
     Returns
     -------
     LidarData
+        With ``error_model`` = ``errors.describe()`` and, for map-matching failures,
+        ``failures``, the (K,) mask of the observations a jump or outlier touched.
+
+    Raises
+    ------
+    ValueError
+        For a bad seed, σ or truth record, an ``errors`` that is no error model, or σ's
+        that contradict the model's.
     """
     seed = as_seed(seed)
     sp = as_scalar(sigma_position, "sigma_position", allow_zero=True)
     sa = as_scalar(sigma_attitude_deg, "sigma_attitude_deg", allow_zero=True)
+    errors = _lidar_error_model(errors, sp, sa)
     for attr in ("t", "position"):
         if not hasattr(truth, attr):
             raise ValueError(f"truth must have t (K,) and position (K, 3); missing {attr!r}")
@@ -470,13 +514,28 @@ def simulate_lidar_poses(truth, seed: int, sigma_position: float = 0.2,
     if t.shape != (K,) or p.shape != (K, 3) or R.shape != (K, 3, 3):
         raise ValueError(f"truth fields must have shapes t (K,), position (K, 3), rotation (K, 3, 3); "
                          f"got {t.shape}, {p.shape}, {R.shape}")
-    rng = np.random.default_rng(seed)
-    n_p = rng.standard_normal((K, 3))
-    n_theta = rng.standard_normal((K, 3))
-    position = p + sp * n_p
-    rotation = R @ so3.exp(np.deg2rad(sa) * n_theta)
+    draw = errors.draw(t, np.random.default_rng(seed))
+    position = p + draw.position
+    rotation = R @ so3.exp(draw.attitude)
     quaternion = so3.matrix_to_quat(rotation)
-    return LidarData(t, position, so3.quat_to_matrix(quaternion), quaternion, sp, sa, seed)
+    return LidarData(t, position, so3.quat_to_matrix(quaternion), quaternion, errors.sigma_position,
+                     errors.sigma_attitude_deg, seed, error_model=errors.describe(), failures=draw.failures)
+
+
+def _lidar_error_model(errors, sigma_position: float, sigma_attitude_deg: float) -> ObservationErrors:
+    """The model :func:`simulate_lidar_poses` draws from, checked against its σ arguments."""
+    if errors is None:
+        return WhiteErrors(sigma_position, sigma_attitude_deg)
+    if not isinstance(errors, ObservationErrors):
+        raise ValueError(f"errors must be None or an error model of kalman_course.data.observation_errors "
+                         f"(WhiteErrors, GaussMarkovErrors, MapMatchingFailures), got {type(errors).__name__}")
+    given = (sigma_position, sigma_attitude_deg)
+    # the σ arguments are either untouched (the signature's defaults) or agree with the model
+    if given not in (simulate_lidar_poses.__defaults__, (errors.sigma_position, errors.sigma_attitude_deg)):
+        raise ValueError(f"sigma_position = {sigma_position:g} m and sigma_attitude_deg = {sigma_attitude_deg:g}° "
+                         f"contradict errors ({errors.describe()}, σ {errors.sigma_position:g} m, "
+                         f"{errors.sigma_attitude_deg:g}°); with errors given, set σ in the model only")
+    return errors
 
 
 def simulate_gnss(gnss, seed: int, sigma: float = 1.0) -> GnssData:
