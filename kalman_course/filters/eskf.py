@@ -789,6 +789,42 @@ def _imu_gaps(dt: np.ndarray, gap_factor) -> np.ndarray:
     return gaps
 
 
+
+def _sorted_events(event_sources, t0: float, t1: float):
+    """The observation events inside (t0, t1], sorted by time and then by kind.
+
+    ``event_sources`` is a sequence of time vectors (or None); a vector's position in it is
+    its events' kind. Returns (times (E,), kinds (E,), indices into their source (E,)).
+    """
+    ev_t, ev_kind, ev_idx = [np.zeros(0)], [np.zeros(0, int)], [np.zeros(0, int)]
+    for kind, times in enumerate(event_sources):
+        if times is not None:
+            sel = np.nonzero((times > t0) & (times <= t1))[0]
+            ev_t.append(times[sel])
+            ev_kind.append(np.full(len(sel), kind))
+            ev_idx.append(sel)
+    ev_t, ev_kind, ev_idx = np.concatenate(ev_t), np.concatenate(ev_kind), np.concatenate(ev_idx)
+    order = np.lexsort((ev_kind, ev_t))
+    return ev_t[order], ev_kind[order], ev_idx[order]
+
+
+def _timeline(t_imu, f_imu, w_imu, step_flag, event_t, tol: float = 1e-9):
+    """The merged timeline: IMU samples plus a node at every event time not on a sample.
+
+    Returns t_nodes (n,), the specific force at the nodes (n, 3), each step's mean rate
+    (n−1, 3), each step's flag (n−1,) (that of the IMU interval it lies in) and each event's
+    node (E,).
+    """
+    pos = np.searchsorted(t_imu, event_t)
+    on_sample = (pos < len(t_imu)) & (np.abs(t_imu[np.minimum(pos, len(t_imu) - 1)] - event_t) <= tol)
+    t_nodes = np.sort(np.concatenate([t_imu, np.unique(event_t[~on_sample])]), kind="stable")
+    f_nodes = np.column_stack([np.interp(t_nodes, t_imu, f_imu[:, i]) for i in range(3)])
+    w_nodes = np.column_stack([np.interp(t_nodes, t_imu, w_imu[:, i]) for i in range(3)])
+    imu_step = np.clip(np.searchsorted(t_imu, t_nodes[:-1], side="right") - 1, 0, len(t_imu) - 2)
+    return (t_nodes, f_nodes, 0.5 * (w_nodes[:-1] + w_nodes[1:]), step_flag[imu_step],
+            np.searchsorted(t_nodes, event_t - tol))
+
+
 def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lidar=None, gnss=None,
         start: int = 0, t_end: float | None = None, output_times=None, P0=None,
         use_interpolation_flags: bool = True, record_all: bool = False,
@@ -871,34 +907,13 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
         step_flag |= flag_imu[:-1] | flag_imu[1:]
 
     # ---- events: (time, kind, index) with kind 0 = lidar, 1 = gnss, 2 = output only ----
-    sources = (None if lidar is None else lidar.t, None if gnss is None else gnss.t,
-               None if output_times is None else as_vector(output_times, "output_times"))
-    ev_t, ev_kind, ev_idx = [np.zeros(0)], [np.zeros(0, int)], [np.zeros(0, int)]
-    for kind, times in enumerate(sources):
-        if times is not None:
-            sel = np.nonzero((times > t0) & (times <= t1))[0]
-            ev_t.append(times[sel])
-            ev_kind.append(np.full(len(sel), kind))
-            ev_idx.append(sel)
-    ev_t, ev_kind, ev_idx = np.concatenate(ev_t), np.concatenate(ev_kind), np.concatenate(ev_idx)
-    order = np.lexsort((ev_kind, ev_t))
-    ev_t, ev_kind, ev_idx = ev_t[order], ev_kind[order], ev_idx[order]
-
-    # ---- merged timeline: IMU samples plus a node at every event time not on a sample ----
-    tol = 1e-9
-    pos = np.searchsorted(t_imu, ev_t)
-    on_sample = (pos < len(t_imu)) & (np.abs(t_imu[np.minimum(pos, len(t_imu) - 1)] - ev_t) <= tol)
-    t_nodes = np.sort(np.concatenate([t_imu, np.unique(ev_t[~on_sample])]), kind="stable")
-    f_nodes = np.column_stack([np.interp(t_nodes, t_imu, f_imu[:, i]) for i in range(3)])
-    w_nodes = np.column_stack([np.interp(t_nodes, t_imu, w_imu[:, i]) for i in range(3)])
-    w_mean = 0.5 * (w_nodes[:-1] + w_nodes[1:])             # each step's mean rate
-    # step j (node j → j+1) inherits the flag of the IMU interval it lies in
-    imu_step = np.clip(np.searchsorted(t_imu, t_nodes[:-1], side="right") - 1, 0, len(t_imu) - 2)
-    flags = step_flag[imu_step]
+    ev_t, ev_kind, ev_idx = _sorted_events((None if lidar is None else lidar.t, None if gnss is None else gnss.t,
+                                            None if output_times is None else as_vector(output_times, "output_times")),
+                                           t0, t1)
+    t_nodes, f_nodes, w_mean, flags, ev_node = _timeline(t_imu, f_imu, w_imu, step_flag, ev_t)
     dt_nodes = np.diff(t_nodes)
     q = _process_noise(np.where(flags[:, None], cfg.interpolated_density, cfg.process_density),
                        dt_nodes, cfg.bias_model)
-    ev_node = np.searchsorted(t_nodes, ev_t - tol)
     # plain lists: the event loop reads them one element at a time
     ev_node_l, ev_kind_l, ev_idx_l = ev_node.tolist(), ev_kind.tolist(), ev_idx.tolist()
 

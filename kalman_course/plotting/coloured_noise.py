@@ -1,0 +1,134 @@
+"""Chapter 10 figure: what coloured lidar errors do to the ESKF, and the remedies, against τ.
+
+One call draws the lecture's figure from a
+:class:`~kalman_course.chapters.coloured_noise.ColouredNoiseResult` (read by attribute):
+the pose NEES of each filter against the time constant τ of the simulated lidar error,
+over the shaded 95 % interval, on a log scale (a filter ten times overconfident is as far
+from the band as one ten times underconfident), and beside it the accuracy, the ESKF/raw
+position APE ratio. A marker is the mean over the seeds (NEES) or their median (ratio);
+its whiskers span the seeds.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from kalman_course.plotting.vocabulary import COLORS, CURVE_COLORS, _bounds
+
+__all__ = ["plot_coloured_noise"]
+
+#: Legend names of the filters of ``chapters.coloured_noise.REMEDIES``.
+_LEGEND = {
+    "plain": "plain ESKF (white R)",
+    "inflated_R": "R × (1 + φ)/(1 − φ)",
+    "fewer_observations": "one pose per 2τ",
+    "augmented": "state augmented with the GM error",
+}
+_MARKERS = ("o", "s", "^", "D", "v", "P")
+_NEES_TICKS = (0.5, 1, 2, 3, 6, 10, 20, 30, 60, 100, 200, 300, 600, 1000)
+
+
+def _scores(result):
+    """τ (T,), remedies (M,), per-seed NEES and position ratios (T, M, S), the NEES band."""
+    for attr in ("time_constants", "remedies", "nees_pose", "position_ratio", "nees_band"):
+        if not hasattr(result, attr):
+            raise ValueError(f"result must be a ColouredNoiseResult (time_constants, remedies, nees_pose, "
+                             f"position_ratio, nees_band); missing {attr!r}")
+    taus = np.asarray(result.time_constants, dtype=float)
+    remedies = tuple(result.remedies)
+    nees = np.asarray(result.nees_pose, dtype=float)
+    ratio = np.asarray(result.position_ratio, dtype=float)
+    if taus.ndim != 1 or taus.size == 0 or not remedies:
+        raise ValueError("result must hold at least one time constant and one remedy")
+    expected = (taus.size, len(remedies))
+    for name, arr in (("nees_pose", nees), ("position_ratio", ratio)):
+        if arr.ndim != 3 or arr.shape[:2] != expected or arr.shape[2] == 0:
+            raise ValueError(f"result.{name} must have shape ({expected[0]}, {expected[1]}, S), got {arr.shape}")
+        if not np.isfinite(arr).all():
+            raise ValueError(f"result.{name} must be finite")
+    if (nees <= 0).any():
+        raise ValueError("result.nees_pose must be positive (it is drawn on a log scale)")
+    return taus, remedies, nees, ratio, _bounds(*result.nees_band)
+
+
+def _whiskers(ax, x, centre, low, high, color, marker, label):
+    """Markers at ``centre`` with bars from ``low`` to ``high``."""
+    return ax.errorbar(x, centre, yerr=[centre - low, high - centre], fmt=marker, color=color, ms=6,
+                       capsize=3, lw=1.2, label=label)
+
+
+def plot_coloured_noise(result, *, accuracy: bool = True, figsize=None):
+    """Pose NEES (and ESKF/raw position APE) of each filter against the lidar error's time constant.
+
+    Parameters
+    ----------
+    result : ColouredNoiseResult
+        From :func:`kalman_course.chapters.coloured_noise.coloured_noise`: ``time_constants``
+        (T,) s, ``remedies`` (M,), ``nees_pose`` and ``position_ratio`` (T, M, S) per seed,
+        ``nees_band`` the 95 % interval of the seed-averaged NEES.
+    accuracy : bool
+        Also draw the ESKF/raw position APE ratio in a left panel (default).
+    figsize : tuple, optional
+        Figure size (default (11, 4.6) with the accuracy panel, (7, 5) without).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        NEES panel: the seed-and-time mean (marker), the per-seed time means (whiskers), the
+        interval shaded and 6 marked, log y axis. Accuracy panel: the median ratio over the
+        seeds (marker) and its range (whiskers), the raw poses at 1.
+
+    Raises
+    ------
+    ValueError
+        If ``result`` lacks a field, the shapes disagree, or a value is not finite.
+    """
+    import matplotlib.pyplot as plt
+
+    taus, remedies, nees, ratio, (lo, hi) = _scores(result)
+    accuracy = bool(accuracy)
+    if figsize is None:
+        figsize = (11, 4.6) if accuracy else (7, 5)
+    fig, axes = plt.subplots(1, 2 if accuracy else 1, figsize=figsize, squeeze=False)
+    axes = axes[0]
+    ax_nees = axes[-1]
+    x = np.arange(taus.size, dtype=float)
+    width = 0.6 / max(len(remedies), 1)
+    n_seeds = nees.shape[2]
+
+    ax_nees.axhspan(lo, hi, color=COLORS["band"], alpha=0.5, lw=0,
+                    label=f"95 % interval, mean of {n_seeds} seeds [{lo:.2f}, {hi:.2f}]")
+    ax_nees.axhline(6.0, color="0.4", lw=0.8, ls="--", label="expected value 6")
+    for j, remedy in enumerate(remedies):
+        xj = x + (j - (len(remedies) - 1) / 2) * width
+        color, marker = CURVE_COLORS[j % len(CURVE_COLORS)], _MARKERS[j % len(_MARKERS)]
+        label = _LEGEND.get(remedy, remedy)
+        per_seed = nees[:, j, :]
+        _whiskers(ax_nees, xj, per_seed.mean(axis=1), per_seed.min(axis=1), per_seed.max(axis=1), color, marker,
+                  label)
+        if accuracy:
+            r = ratio[:, j, :]
+            _whiskers(axes[0], xj, np.median(r, axis=1), r.min(axis=1), r.max(axis=1), color, marker, label)
+
+    ticks = ["white" if tau == 0 else f"{tau:g} s" for tau in taus]
+    ax_nees.set_yscale("log")
+    ax_nees.set(xlabel="time constant τ of the simulated lidar error", ylabel="mean pose NEES (6 dof)",
+                title="consistency: pose NEES, mean over seeds and time")
+    if accuracy:
+        axes[0].axhline(1.0, color=COLORS["measurement"], lw=1.0, label="raw simulated poses")
+        axes[0].set(xlabel="time constant τ of the simulated lidar error", ylabel="ESKF / raw position APE",
+                    title="accuracy: median and range over the seeds")
+    for ax in axes:
+        ax.set_xticks(x, ticks)
+    ax_nees.minorticks_off()                # plain numbers on the log axis, not 10^k
+    bottom, top = ax_nees.get_ylim()
+    ax_nees.set_yticks([v for v in _NEES_TICKS if bottom <= v <= top],
+                       [f"{v:g}" for v in _NEES_TICKS if bottom <= v <= top])
+    # one legend for both panels, below them: the markers reach every corner of the panels
+    handles, labels = ax_nees.get_legend_handles_labels()
+    if accuracy:
+        extra = axes[0].get_legend_handles_labels()
+        handles, labels = handles + extra[0][:1], labels + extra[1][:1]
+    fig.tight_layout(rect=(0, 0.16 if accuracy else 0.2, 1, 1))
+    fig.legend(handles, labels, loc="lower center", ncol=3 if accuracy else 2, fontsize=8, frameon=False)
+    return fig
