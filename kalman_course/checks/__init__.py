@@ -20,6 +20,7 @@ from kalman_course.checks import (  # noqa: F401  (imported for registration)
     imu,          # chapter 07
     eskf,         # chapter 08 and its bonus
     consistency,  # chapter 09
+    real_sensors,  # chapter 10
 )
 
 

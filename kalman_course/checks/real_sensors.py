@@ -1,0 +1,927 @@
+"""Checks for chapter 10 (real sensors): the Gauss–Markov observation error and the augmented
+ESKF's F and Q, the relative pose of visual odometry (increment, residual, Jacobian), KITTI's
+drift metric, and (the optional challenge) one step of choosing the VO noise by the NIS.
+
+Cases (what is real, what is simulated)
+---------------------------------------
+- Gauss–Markov blocks: made-up stationary σ, different on every component (m and rad), time
+  constants 0.5–5 s and steps 0.01–2 s, including steps longer than τ, where the first-order
+  forms are off by a factor (the first-order decay 1 − T/τ even turns negative).
+- Augmented matrices: the plain ESKF's F and B Q Bᵀ (:mod:`kalman_course.filters.eskf`) at
+  states of the real KITTI ground truth of ``turns`` (tilted, made-up non-zero biases), steps of
+  0.01, 0.104 and 1 s, made-up σ per component.
+- Relative motion, residual and Jacobian: pairs of real KITTI ground-truth poses (``turns``)
+  0.1, 1 and 3 s apart (up to 1.45 rad of turning), tilted by up to ~0.5 rad so that no
+  rotation is about the vertical alone; the same pairs moved by one rigid transform (a relative
+  pose must not change); measured increments are the true ones plus seeded noise (simulated).
+- Drift: the real ORB-SLAM2 and S-PTAM tracks of sequence 00, anchored to the truth at one frame
+  as in lecture 10 §2 (:func:`kalman_course.chapters.visual_odometry.setup`), against the real
+  ground truth, every 5th of the first 1550 frames (about 160 s), segments of 50, 100, 200 and
+  400 m.
+- Challenge: innovations and their S of the relative VO filter
+  (:func:`kalman_course.chapters.visual_odometry.run_relative_vo`: real IMU, real VO) over the
+  first 60 s, run with σ's that are too small and too large (median NIS off its χ² median by
+  factors from 1/1300 to 39), cut into blocks of 1, 2 and 3 components of one unit each.
+
+A learner's function is run on every case before anything is judged, and a known mistake is
+named only when it reproduces the learner's results on every case (a wrong formula is
+consistent; agreeing with the right one on one case is a coincidence), so each hint names the
+mistake made.
+
+Tolerances (and why; "measured" numbers are over these cases)
+-------------------------------------------------------------
+- Gauss–Markov blocks, augmented F and Q, relative motion, the position part of the residual:
+  :data:`RTOL` relative, :data:`ATOL` absolute: round-off only (exp, expm1, block_diag, solve
+  and the order of products agree to ~1e-15); every listed mistake is off by more than 1e-2
+  relative on some case (measured; the closest, 1.5 %, is one of F_aug and Q_aug's).
+- The attitude part of the residual: |y_θ|² + 1e-12 absolute (as chapter 08's pose residual), so
+  the lecture's first-order (ΔR_mᵀ ΔŘ − I)^∨ passes (it differs from the Log by less than
+  |y_θ|²/4); every listed mistake errs by O(|y_θ|) or O(|ΔŘ| |y_θ|) on the 1–3 s cases
+  (|y_θ| ≈ 0.02–0.09 rad, turning up to 1.45 rad): 17 times the tolerance or more (measured).
+- Jacobian: :data:`JACOBIAN_ATOL` absolute against central differences of the residual
+  (h = 1e-6; they agree with the analytic blocks to 3e-9, measured); every listed mistake errs
+  by more than 1 in some block entry (measured).
+- Drift: :data:`DRIFT_RTOL` relative on every segment's errors: the angle by an arccos of the
+  trace loses precision at small angles (at the smallest rotational error here, 1e-3 rad, it
+  differs from the norm of the Log by up to 1.8e-9 relative, measured); the other ways of
+  writing it agree to ~1e-14; every listed mistake is off by more than 20 % on some segment
+  (measured).
+- Challenge: :data:`RTOL` relative on the new σ (solve, inv, Cholesky and einsum give NIS values
+  equal to ~1e-13; χ² quantiles from the package or scipy agree to ~1e-12). The closest listed
+  mistake, only the diagonal of S, is off by 2e-4 relative (measured: the components of one
+  increment's innovation correlate weakly); the others by 30 % or more.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Callable
+
+import numpy as np
+
+from kalman_course.checks.harness import CheckFailed, as_array, call, check, type_name
+from kalman_course.chapters import visual_odometry as vo
+from kalman_course.core import so3
+from kalman_course.core.linalg import symmetrise
+from kalman_course.core.numdiff import numerical_jacobian
+from kalman_course.data import load_kitti
+from kalman_course.evaluation import metrics
+from kalman_course.evaluation.drift import drift
+from kalman_course.filters import eskf, eskf_augmented, eskf_relative
+from kalman_course.filters.eskf import NominalState
+
+#: Relative and absolute tolerance of the exact formulas (see the module notes).
+RTOL, ATOL = 1e-9, 1e-12
+#: Relative tolerance of the drift metric's per-segment errors (see the module notes).
+DRIFT_RTOL = 1e-7
+#: Absolute tolerance of a Jacobian against central differences (see the module notes).
+JACOBIAN_ATOL = 1e-6
+#: Step of the central differences.
+FD_STEP = 1e-6
+
+#: Gauss–Markov cases: (stationary σ (6,) [m ×3, rad ×3], T s, τ s). σ differs per component and
+#: the steps include T > τ.
+_SIGMA_A = np.array([0.2, 0.15, 0.35, 0.004, 0.006, 0.009])
+_SIGMA_B = np.array([1.5, 0.8, 2.5, 0.02, 0.01, 0.03])
+GM_CASES = ((_SIGMA_A, 0.104, 0.5), (_SIGMA_A, 0.01, 3.0), (_SIGMA_B, 2.0, 0.5), (_SIGMA_B, 0.37, 1.3),
+            (_SIGMA_A, 1.0, 5.0))
+
+#: Augmented-matrix cases: (IMU step or interval T s, τ s); one KITTI state each.
+AUG_STEPS = ((0.01, 0.5), (0.104, 1.0), (1.0, 3.0))
+#: ESKF noise densities of the cases (accel, gyro, accel bias, gyro bias), as chapter 08's.
+DENSITY = np.array([0.03, 1e-3, 1.67e-4, 2.91e-6])
+
+#: Pose-pair cases: (truth frame of the clone, frames later) on ``turns``; 10 frames ≈ 1 s.
+POSE_PAIRS = ((100, 1), (100, 30), (260, 10), (380, 30), (530, 10))
+#: The rigid transform every pair is also moved by: rotation vector (rad) and translation (m).
+MOVE_ROTATION = np.array([0.3, -0.5, 2.0])
+MOVE_TRANSLATION = np.array([120.0, -45.0, 3.0])
+
+#: Drift cases: VO systems, frames (every ``DRIFT_STRIDE``-th of the first ``DRIFT_FRAMES``
+#: after the anchor frame), segment lengths (m) and the step between segment starts (frames).
+DRIFT_SYSTEMS = ("ORB-SLAM2", "S-PTAM")
+DRIFT_FRAMES, DRIFT_STRIDE = 1550, 5
+DRIFT_LENGTHS = (50.0, 100.0, 200.0, 400.0)
+DRIFT_STEP = 3
+
+#: Challenge: the calibration stretch (s) and the σ's the runs use, as factors of 1 cm / 0.01°.
+NIS_SECONDS = 60.0
+NIS_FACTORS = (1.0, 30.0)
+_NIS_STD0 = np.array([0.01, 0.01, 0.01, 1.7e-4, 1.7e-4, 1.7e-4])
+NIS_BLOCKS = ((0, 3), (3, 6), (0, 1), (5, 6), (1, 3))
+
+
+# --------------------------------------------------------------------------------------
+# judging, shared by every check
+# --------------------------------------------------------------------------------------
+
+def _close(value, wanted, atol, rtol=RTOL) -> bool:
+    if value is None or wanted is None:
+        return False
+    value, wanted = np.asarray(value, dtype=float), np.asarray(wanted, dtype=float)
+    return value.shape == wanted.shape and bool(np.allclose(value, wanted, rtol=rtol, atol=atol))
+
+
+def _evaluate(formula: Callable, case):
+    """A (right or wrong) formula on one case, or None where it raises or is not finite."""
+    try:
+        with np.errstate(all="ignore"):
+            value = np.asarray(formula(*case), dtype=float)
+    except Exception:  # a mistake need not even have the right shapes on every case
+        return None
+    return value if np.all(np.isfinite(value)) else None
+
+
+def _judge(what: str, got: list, cases, labels, reference: Callable, mistakes, hint: str,
+           atol=ATOL, rtol=RTOL) -> None:
+    """Fail unless ``got[k]`` matches ``reference(*cases[k])`` on every case.
+
+    ``mistakes`` is a list of (formula, why): a formula of a case's arguments giving a wrong
+    value; the first that reproduces the learner's values on every case is named. ``atol`` may
+    be a function of the case (a per-case tolerance).
+    """
+    tol = atol if callable(atol) else (lambda *case: atol)
+    wrong = [k for k, case in enumerate(cases) if not _close(got[k], reference(*case), tol(*case), rtol)]
+    if not wrong:
+        return
+    k = wrong[0]
+    for formula, why in mistakes:
+        if all(_close(got[n], _evaluate(formula, case), tol(*case), rtol) for n, case in enumerate(cases)):
+            raise CheckFailed(f"{what} is wrong ({labels[k]}). Hint: {why}")
+    err = np.abs(np.asarray(got[k], dtype=float) - reference(*cases[k])).max()
+    raise CheckFailed(f"{what} differs from the reference ({labels[k]}; max abs error {err:.3g}, "
+                      f"{len(wrong)} of {len(cases)} cases wrong). Hint: {hint}")
+
+
+def _pair(value, what: str, names: tuple[str, str]):
+    """A learner's result that must be a pair (a, b)."""
+    if isinstance(value, (tuple, list)) and len(value) == 2:
+        return value
+    raise CheckFailed(f"{what} must return a tuple ({names[0]}, {names[1]}), got a {type_name(value)}")
+
+
+def _array(value, shape: tuple, what: str, diag_hint: bool = False) -> np.ndarray:
+    """A learner's array of exactly ``shape`` and finite, or a failure that says what came back."""
+    arr = as_array(value, what)
+    if arr.shape != tuple(shape):
+        extra = ""
+        if diag_hint and arr.shape == (shape[0],):
+            extra = f" (a vector of the diagonal? the check wants the {shape[0]} × {shape[1]} matrix: np.diag)"
+        elif arr.shape == ():
+            extra = f" (a number? the check wants the {' × '.join(map(str, shape))} matrix)"
+        raise CheckFailed(f"{what} has shape {arr.shape}, expected {tuple(shape)}{extra}")
+    if not np.all(np.isfinite(arr)):
+        raise CheckFailed(f"{what} contains NaN or inf")
+    return arr
+
+
+# --------------------------------------------------------------------------------------
+# 1. the Gauss–Markov blocks
+# --------------------------------------------------------------------------------------
+
+def _phi(T, tau):
+    return np.exp(-T / tau)
+
+
+def _gm_F(sigma, T, tau):
+    return _phi(T, tau) * np.eye(6)
+
+
+def _gm_Q(sigma, T, tau):
+    return np.diag(eskf_augmented.gauss_markov_noise(sigma, T, tau))
+
+
+def _gm_label(sigma, T, tau) -> str:
+    return f"T = {T:g} s, τ = {tau:g} s, σ = ({', '.join(f'{v:g}' for v in sigma)})"
+
+
+_GM_F_MISTAKES = [
+    (lambda s, T, tau: (1.0 - T / tau) * np.eye(6),
+     "F_e = (1 − T/τ) I is the first-order (Euler) step of ė = −e/τ, right only for T ≪ τ: at T = 2 s "
+     "and τ = 0.5 s it is −3 I, an error that flips sign and triples. The equation has an exact solution "
+     "over any step (lecture 10 §1): how much of e survives T seconds?"),
+    (lambda s, T, tau: np.exp(-tau / T) * np.eye(6),
+     "the exponent is upside down: a longer step (or a shorter memory τ) must leave LESS of the error; "
+     "the exponent is −T/τ, a ratio of seconds to seconds"),
+    (lambda s, T, tau: np.exp(-T * tau) * np.eye(6),
+     "T·τ has units of s²: the exponent of the decay must be dimensionless, −T/τ"),
+    (lambda s, T, tau: np.exp(T / tau) * np.eye(6),
+     "sign: the error decays (ė = −e/τ), so the factor over the step is below 1"),
+    (lambda s, T, tau: _phi(T, tau) ** 2 * np.eye(6),
+     "φ² = exp(−2T/τ) is how the VARIANCE decays over the step; F_e carries the error itself: φ"),
+    (lambda s, T, tau: np.exp(-T / tau * np.eye(6)),
+     "np.exp of a matrix is element-wise: the off-diagonal zeros became exp(0) = 1, coupling all six "
+     "components. Multiply the identity by the scalar decay instead"),
+    (lambda s, T, tau: np.eye(6),
+     "F_e = I keeps the whole error for ever (a random constant or random walk): a Gauss–Markov error "
+     "forgets itself with the time constant τ"),
+    (lambda s, T, tau: _gm_Q(s, T, tau),
+     "F_e and Q_e are swapped: gauss_markov_blocks returns (F_e, Q_e)"),
+    (lambda s, T, tau: np.zeros((6, 6)),
+     "F_e = 0 forgets the error at every step: that is white noise, chapter 08's assumption, which this "
+     "model replaces"),
+]
+
+_GM_Q_MISTAKES = [
+    (lambda s, T, tau: np.diag(2.0 * s ** 2 / tau * T),
+     "Q_e = 2σ²T/τ is the first-order variance (the continuous density 2σ²/τ times T), right only for "
+     "T ≪ τ: at T = 2 s, τ = 0.5 s it is 8σ², far above the stationary σ². Use the exact solution: the "
+     "new part must keep the error's variance stationary, F_e diag(σ²) F_eᵀ + Q_e = diag(σ²)"),
+    (lambda s, T, tau: np.diag(s ** 2 * T),
+     "σ²T is how a white noise of density σ integrates; here σ is the error's stationary standard "
+     "deviation (m or rad), so σ²T has the wrong units (m²·s). The new part must keep the variance "
+     "stationary: F_e diag(σ²) F_eᵀ + Q_e = diag(σ²)"),
+    (lambda s, T, tau: np.diag(s ** 2),
+     "the whole stationary variance σ² is added at every step, as for white noise: most of the error "
+     "is carried over by F_e, and only what keeps the variance at σ² is new"),
+    (lambda s, T, tau: np.diag(s ** 2 * (1.0 - _phi(T, tau))),
+     "σ²(1 − φ): the variance carried over is φ² σ² (F_e σ² F_eᵀ), so the new part is σ²(1 − φ²)"),
+    (lambda s, T, tau: np.diag(s ** 2 * (1.0 - _phi(T, tau)) ** 2),
+     "σ²(1 − φ)² is not what keeps the variance stationary: F_e σ² F_eᵀ + Q_e = σ² gives σ²(1 − φ²)"),
+    (lambda s, T, tau: np.diag(s * (1.0 - _phi(T, tau) ** 2)),
+     "σ is a standard deviation: Q_e holds variances, σ²"),
+    (lambda s, T, tau: np.diag(s * np.sqrt(1.0 - _phi(T, tau) ** 2)),
+     "that is the standard deviation of the new part; Q_e is its covariance (a variance on the diagonal)"),
+    (lambda s, T, tau: np.diag(s ** 2 * _phi(T, tau) ** 2),
+     "φ²σ² is the part of the variance CARRIED OVER by F_e; Q_e is what is new, σ²(1 − φ²)"),
+    (lambda s, T, tau: np.diag(np.full(6, s[0] ** 2) * (1.0 - _phi(T, tau) ** 2)),
+     "one σ for all six components: sigma holds one stationary σ per component (m for position, rad "
+     "for attitude)"),
+    (lambda s, T, tau: np.zeros((6, 6)),
+     "Q_e = 0: nothing new enters, so the error would decay to zero and the filter would learn it "
+     "exactly; keep its variance stationary"),
+]
+
+
+@check
+def check_gauss_markov_blocks(gauss_markov_blocks):
+    """``gauss_markov_blocks(sigma, T, tau)`` returns (F_e (6, 6), Q_e (6, 6)) of one step."""
+    results = [_pair(call(gauss_markov_blocks, sigma, T, tau), "gauss_markov_blocks", ("F_e", "Q_e"))
+               for sigma, T, tau in GM_CASES]
+    labels = [_gm_label(*case) for case in GM_CASES]
+    F = [_array(r[0], (6, 6), f"F_e ({label})", diag_hint=True) for r, label in zip(results, labels)]
+    _judge("F_e", F, GM_CASES, labels, _gm_F, _GM_F_MISTAKES,
+           "the error decays with time constant τ; F_e = φ I with φ the share of the error that survives "
+           "T seconds (lecture 10 §1)")
+    Q = [_array(r[1], (6, 6), f"Q_e ({label})", diag_hint=True) for r, label in zip(results, labels)]
+    _judge("Q_e", Q, GM_CASES, labels, _gm_Q, _GM_Q_MISTAKES,
+           "Q_e is the covariance of what is new in the error after the step; it must keep the error's "
+           "variance stationary, F_e diag(σ²) F_eᵀ + Q_e = diag(σ²)")
+
+
+# --------------------------------------------------------------------------------------
+# 2. the augmented transition and process noise
+# --------------------------------------------------------------------------------------
+
+@functools.lru_cache(maxsize=None)
+def augmented_cases():
+    """(F (15, 15), B Q Bᵀ (15, 15), σ (6,), T, τ) at KITTI truth states (real) with made-up biases."""
+    ex = load_kitti("turns")
+    rng = np.random.default_rng(10)
+    cases = []
+    for (T, tau), k, sigma in zip(AUG_STEPS, (700, 2500, 4400), (_SIGMA_A, _SIGMA_B, _SIGMA_A[::-1].copy())):
+        nav = ex.truth.state_at(float(ex.imu.t[k]))
+        R = nav.rotation @ so3.exp(rng.normal(size=3) * 0.3)
+        b_a, b_w = rng.normal(size=3) * 0.05, rng.normal(size=3) * 0.005
+        F_t = eskf.error_dynamics(R, ex.imu.specific_force[k], ex.imu.angular_rate[k], b_a, b_w)
+        F, B = eskf.discretise(F_t, eskf.noise_jacobian(R), T)
+        BQBt = symmetrise(B @ eskf.process_noise(DENSITY, T) @ B.T)
+        for arr in (F, BQBt, sigma):
+            arr.setflags(write=False)
+        cases.append((F, BQBt, sigma, T, tau))
+    return tuple(cases)
+
+
+def _blockdiag(A, B) -> np.ndarray:
+    n, m = A.shape[0], B.shape[0]
+    out = np.zeros((n + m, n + m))
+    out[:n, :n] = A
+    out[n:, n:] = B
+    return out
+
+
+def _aug_F(F, BQBt, sigma, T, tau):
+    return eskf_augmented.augmented_transition(F, T, tau)
+
+
+def _aug_Q(F, BQBt, sigma, T, tau):
+    return eskf_augmented.augmented_process_noise(BQBt, sigma, T, tau)
+
+
+def _coupled(F, rows: bool) -> np.ndarray:
+    """F_aug with the observation error coupled to the pose error through POSE_G (a graded mistake)."""
+    out = _blockdiag(F, np.zeros((6, 6)))
+    if rows:
+        out[15:, :15] = eskf.POSE_G
+    else:
+        out[:15, 15:] = eskf.POSE_G.T
+    return out
+
+
+# each mistake: (F_aug formula, Q_aug formula, why); None: that matrix is not part of the mistake
+_AUG_MISTAKES = [
+    (lambda F, Q, s, T, tau: np.eye(21), lambda F, Q, s, T, tau: np.zeros((21, 21)),
+     "F_aug is the identity and Q_aug zero: the step does nothing (the placeholder). Over one step the "
+     "navigation errors move as in the plain ESKF (its F and B Q Bᵀ, given) and the observation error as "
+     "your Gauss–Markov blocks; place each in its rows and columns of the 21-state"),
+    (lambda F, Q, s, T, tau: _blockdiag(F, np.eye(6)), lambda F, Q, s, T, tau: _blockdiag(Q, np.zeros((6, 6))),
+     "the observation error is held constant (its block of F_aug is I and of Q_aug zero): a random "
+     "constant, which the filter would learn once and for all. Its rows are a Gauss–Markov step: use "
+     "your gauss_markov_blocks"),
+    (lambda F, Q, s, T, tau: _blockdiag(F, np.eye(6)), None,
+     "the observation error's block of F_aug is I: with the Gauss–Markov noise added that is a random "
+     "walk, whose variance grows without bound; it decays with F_e from your gauss_markov_blocks"),
+    (None, lambda F, Q, s, T, tau: _blockdiag(Q, np.zeros((6, 6))),
+     "the observation error's block of Q_aug is zero: it only decays, and the filter would soon believe "
+     "it knows the error exactly; add Q_e from your gauss_markov_blocks"),
+    (lambda F, Q, s, T, tau: _blockdiag(F, np.zeros((6, 6))), lambda F, Q, s, T, tau: _blockdiag(Q, np.diag(s ** 2)),
+     "the observation error is treated as white (F block 0, Q block σ²): that is the plain ESKF's "
+     "assumption with six useless states; use your Gauss–Markov blocks"),
+    (lambda F, Q, s, T, tau: _blockdiag(np.eye(15), _gm_F(s, T, tau)), None,
+     "the navigation block of F_aug is the identity: the navigation errors still move with the plain "
+     "ESKF's F over the step (rows and columns 0:15)"),
+    (None, lambda F, Q, s, T, tau: _blockdiag(np.zeros((15, 15)), _gm_Q(s, T, tau)),
+     "the navigation block of Q_aug is zero: the IMU's noise B Q Bᵀ still enters the navigation errors "
+     "(rows and columns 0:15)"),
+    (lambda F, Q, s, T, tau: _blockdiag(_gm_F(s, T, tau), F), lambda F, Q, s, T, tau: _blockdiag(_gm_Q(s, T, tau), Q),
+     "the order of the states: δx = [δp, δv, δθ, δb_a, δb_ω, δe], the navigation errors first (0:15), "
+     "the observation error last (15:21)"),
+    (lambda F, Q, s, T, tau: _blockdiag(F, _gm_F(s, tau, T)), lambda F, Q, s, T, tau: _blockdiag(Q, _gm_Q(s, tau, T)),
+     "T and τ are swapped in the call of gauss_markov_blocks(sigma, T, tau)"),
+    (lambda F, Q, s, T, tau: _blockdiag(F, _gm_F(s, T, tau)), lambda F, Q, s, T, tau: _blockdiag(Q, _gm_Q(s ** 2, T, tau)),
+     "gauss_markov_blocks takes the standard deviations σ, not the variances σ²"),
+    (lambda F, Q, s, T, tau: _blockdiag(F, _gm_Q(s, T, tau)), lambda F, Q, s, T, tau: _blockdiag(Q, _gm_F(s, T, tau)),
+     "F_e and Q_e are swapped: gauss_markov_blocks returns (F_e, Q_e)"),
+    (lambda F, Q, s, T, tau: _coupled(F, rows=True) + _blockdiag(np.zeros((15, 15)), _gm_F(s, T, tau)), None,
+     "the observation error's rows depend on the pose error (POSE_G in rows 15:21): over one IMU step "
+     "nothing couples them, since the error belongs to the map matcher, not to the vehicle's motion. "
+     "The updates correlate them, and P carries that correlation; F_aug is block-diagonal"),
+    (lambda F, Q, s, T, tau: _coupled(F, rows=False) + _blockdiag(np.zeros((15, 15)), _gm_F(s, T, tau)), None,
+     "the pose errors' rows depend on the observation error (POSE_Gᵀ in columns 15:21): the vehicle's "
+     "motion does not depend on the map matcher's error; F_aug is block-diagonal"),
+]
+
+
+@check(uses=("gauss_markov_blocks",))
+def check_augmented_matrices(augmented_matrices):
+    """``augmented_matrices(F, BQBt, sigma, T, tau)`` returns (F_aug (21, 21), Q_aug (21, 21))."""
+    cases = augmented_cases()
+    labels = [f"T = {T:g} s, τ = {tau:g} s" for _, _, _, T, tau in cases]
+    results = [_pair(call(augmented_matrices, *case), "augmented_matrices", ("F_aug", "Q_aug")) for case in cases]
+    F_got = [_array(r[0], (21, 21), f"F_aug ({label})") for r, label in zip(results, labels)]
+    Q_got = [_array(r[1], (21, 21), f"Q_aug ({label})") for r, label in zip(results, labels)]
+    F_ok = all(_close(g, _aug_F(*c), ATOL) for g, c in zip(F_got, cases))
+    Q_ok = all(_close(g, _aug_Q(*c), ATOL) for g, c in zip(Q_got, cases))
+    if F_ok and Q_ok:
+        return
+    for F_wrong, Q_wrong, why in _AUG_MISTAKES:
+        F_match = all(_close(g, _evaluate(F_wrong or _aug_F, c), ATOL) for g, c in zip(F_got, cases))
+        Q_match = all(_close(g, _evaluate(Q_wrong or _aug_Q, c), ATOL) for g, c in zip(Q_got, cases))
+        if F_match and Q_match:
+            raise CheckFailed(f"F_aug and Q_aug are wrong ({labels[0]}). Hint: {why}")
+    blocks = (("the navigation errors", slice(0, 15)), ("the observation error", slice(15, 21)))
+    for name, got, ref in (("F_aug", F_got, _aug_F), ("Q_aug", Q_got, _aug_Q)):
+        for g, c, label in zip(got, cases, labels):
+            e = ref(*c)
+            for rname, r in blocks:
+                for cname, col in blocks:
+                    if _close(g[r, col], e[r, col], ATOL):
+                        continue
+                    where = (f"the block of {name} in the rows of {rname} ({r.start}:{r.stop}) and the columns "
+                             f"of {cname} ({col.start}:{col.stop}), {label}")
+                    if r != col:
+                        raise CheckFailed(f"{where} should be zero. Hint: over one step nothing couples the "
+                                          "observation error to the navigation errors")
+                    source = ("the plain ESKF's F" if name == "F_aug" else "the plain ESKF's B Q Bᵀ") \
+                        if r.start == 0 else ("F_e" if name == "F_aug" else "Q_e") + " of your gauss_markov_blocks"
+                    raise CheckFailed(f"{where} differs from the reference (max abs error "
+                                      f"{np.abs(g[r, col] - e[r, col]).max():.3g}). Hint: it is {source}")
+
+
+# --------------------------------------------------------------------------------------
+# 3. relative motion, residual and Jacobian
+# --------------------------------------------------------------------------------------
+
+@functools.lru_cache(maxsize=None)
+def pose_pairs():
+    """(label, p0, R0, p1, R1): real KITTI truth poses (tilted), and the same pairs moved rigidly."""
+    ex = load_kitti("turns")
+    rng = np.random.default_rng(12)
+    C, c = so3.exp(MOVE_ROTATION), MOVE_TRANSLATION
+    plain, moved = [], []
+    for k, n in POSE_PAIRS:
+        tilt0, tilt1 = so3.exp(rng.normal(size=3) * 0.3), so3.exp(rng.normal(size=3) * 0.3)
+        p0, R0 = ex.truth.position[k].copy(), ex.truth.rotation[k] @ tilt0
+        p1, R1 = ex.truth.position[k + n].copy(), ex.truth.rotation[k + n] @ tilt1
+        span = f"{n / 10:g} s apart"
+        plain.append((f"two KITTI poses {span}", p0, R0, p1, R1))
+        moved.append((f"the same two poses {span}, the whole track moved by a rigid transform",
+                      C @ p0 + c, C @ R0, C @ p1 + c, C @ R1))
+    out = []
+    for case in plain + moved:
+        for arr in case[1:]:
+            arr.setflags(write=False)
+        out.append(case)
+    return tuple(out)
+
+
+def _ref_dp(p0, R0, p1, R1):
+    return eskf_relative.relative_motion(p0, R0, p1, R1)[0]
+
+
+def _ref_dR(p0, R0, p1, R1):
+    return eskf_relative.relative_motion(p0, R0, p1, R1)[1]
+
+
+_DP_MISTAKES = [
+    (lambda p0, R0, p1, R1: p1 - p0,
+     "Δp is the displacement in the navigation frame: the motion must be seen from pose 0's BODY frame "
+     "(where a VO or an IMU measures it); a relative pose does not change when the whole track is moved "
+     "or turned, p1 − p0 does"),
+    (lambda p0, R0, p1, R1: R0 @ (p1 - p0),
+     "R0 = R_nb maps body vectors to the navigation frame; to see the navigation-frame displacement "
+     "from pose 0's body, use the inverse map, R0ᵀ"),
+    (lambda p0, R0, p1, R1: R1.T @ (p1 - p0),
+     "the displacement is seen from pose 1's body frame; ΔT = T0⁻¹ T1 expresses it in pose 0's"),
+    (lambda p0, R0, p1, R1: R0.T @ (p0 - p1),
+     "sign: Δp is where pose 1 is seen from pose 0, R0ᵀ (p1 − p0)"),
+    (lambda p0, R0, p1, R1: R1.T @ (p0 - p1),
+     "that is where pose 0 is seen from pose 1 (the inverse relative pose T1⁻¹ T0); ΔT = T0⁻¹ T1"),
+    (lambda p0, R0, p1, R1: R0.T @ p1 - p0,
+     "only p1 was rotated: the difference p1 − p0 as a whole is seen from pose 0's body frame"),
+]
+
+_DR_MISTAKES = [
+    (lambda p0, R0, p1, R1: R1 @ R0.T,
+     "R1 R0ᵀ is the rotation between the two poses in the NAVIGATION frame; the relative pose's rotation "
+     "is seen from pose 0's body frame, and must not change when the whole track is turned"),
+    (lambda p0, R0, p1, R1: R0 @ R1.T,
+     "R0 R1ᵀ is the navigation-frame rotation from pose 1 back to pose 0; ΔR turns pose 0's body axes "
+     "into pose 1's, seen from pose 0"),
+    (lambda p0, R0, p1, R1: R1.T @ R0,
+     "that is the inverse, pose 0 seen from pose 1 (T1⁻¹ T0); ΔT = T0⁻¹ T1"),
+    (lambda p0, R0, p1, R1: R0 @ R1,
+     "the inverse of R0 is missing: ΔR = R0⁻¹ R1 and R0⁻¹ = R0ᵀ"),
+    (lambda p0, R0, p1, R1: R1 @ R0,
+     "order and inverse: ΔR = R0⁻¹ R1 (R0⁻¹ = R0ᵀ), pose 0 inverted on the left"),
+]
+
+
+@check
+def check_relative_motion(relative_motion):
+    """``relative_motion(p0, R0, p1, R1)`` returns (Δp (3,), ΔR (3, 3)) = T0⁻¹ T1."""
+    cases = pose_pairs()
+    labels = [c[0] for c in cases]
+    args = [c[1:] for c in cases]
+    results = [_pair(call(relative_motion, *a), "relative_motion", ("dp", "dR")) for a in args]
+    dp = [_array(r[0], (3,), f"Δp ({label})") for r, label in zip(results, labels)]
+    dR = [_array(r[1], (3, 3), f"ΔR ({label})") for r, label in zip(results, labels)]
+    _judge("Δp", dp, args, labels, _ref_dp, _DP_MISTAKES,
+           "Δp is where pose 1 is, seen from pose 0's body frame; it must not change when the whole track "
+           "is moved by a rigid transform (the check does that)", atol=1e-9)
+    _judge("ΔR", dR, args, labels, _ref_dR, _DR_MISTAKES,
+           "ΔR turns pose 0's body axes into pose 1's, seen from pose 0's body frame; it must not change "
+           "when the whole track is turned (the check does that)")
+
+
+@functools.lru_cache(maxsize=None)
+def residual_cases():
+    """(label, clone p, R, current p, R, Δp_m, ΔR_m): KITTI truth poses, measured increment simulated.
+
+    The measurement is the true increment with seeded noise: 3 cm in Δp and 0.02–0.05 rad in ΔR.
+    """
+    rng = np.random.default_rng(13)
+    out = []
+    for (label, p0, R0, p1, R1), scale in zip(pose_pairs()[:len(POSE_PAIRS)], (0.02, 0.05, 0.03, 0.04, 0.05)):
+        dp, dR = eskf_relative.relative_motion(p0, R0, p1, R1)
+        dp_m, dR_m = dp + rng.normal(size=3) * 0.03, dR @ so3.exp(rng.normal(size=3) * scale)
+        case = (p0, R0, p1, R1, dp_m, dR_m)
+        for arr in case:
+            arr.setflags(write=False)
+        out.append((f"clone and current pose: {label}; measured increment with simulated noise", *case))
+    return tuple(out)
+
+
+def _ref_residual(pc, Rc, p, R, dp_m, dR_m):
+    return eskf_relative.relative_pose_residual(pc, Rc, p, R, dp_m, dR_m)
+
+
+def _residual_tolerance(pc, Rc, p, R, dp_m, dR_m) -> np.ndarray:
+    """Per entry: 1e-9 m on the position part, |y_θ|² + 1e-12 on the attitude part."""
+    y_theta = _ref_residual(pc, Rc, p, R, dp_m, dR_m)[3:]
+    return np.r_[np.full(3, 1e-9), np.full(3, float(y_theta @ y_theta) + 1e-12)]
+
+
+def _with_theta(theta: Callable):
+    """A residual formula with the right position part and the attitude part ``theta(ΔŘ, ΔR_m)``."""
+    def formula(pc, Rc, p, R, dp_m, dR_m):
+        dp, dR = eskf_relative.relative_motion(pc, Rc, p, R)
+        return np.r_[dp - dp_m, theta(dR, dR_m)]
+    return formula
+
+
+def _swapped(pc, Rc, p, R, dp_m, dR_m):
+    dp, dR = eskf_relative.relative_motion(p, R, pc, Rc)
+    return np.r_[dp - dp_m, so3.log(dR_m.T @ dR)]
+
+
+_RESIDUAL_MISTAKES = [
+    (lambda pc, Rc, p, R, dp_m, dR_m: np.zeros(6),
+     "the residual is zero: nothing was compared. Predict the increment from the clone to the current "
+     "pose (your relative_motion) and compare it with the measured one"),
+    (_with_theta(lambda dR, dR_m: so3.log(dR) - so3.log(dR_m)),
+     "rotation vectors do not subtract: Log(ΔŘ) − Log(ΔR_m) is close to the rotation between them only "
+     "when both are small, and an increment over a turn is not. Compose the two rotations and take one "
+     "Log, so that the result is the attitude error in the current body frame (as in chapter 08)"),
+    (lambda pc, Rc, p, R, dp_m, dR_m: -_ref_residual(pc, Rc, p, R, dp_m, dR_m),
+     "sign (both parts): with error = nominal − true the residual is prediction minus measurement, as in "
+     "chapter 08, so that y ≈ G δx with G's δp block R_cᵀ and δθ block +I"),
+    (lambda pc, Rc, p, R, dp_m, dR_m: np.r_[-_ref_residual(pc, Rc, p, R, dp_m, dR_m)[:3],
+                                            _ref_residual(pc, Rc, p, R, dp_m, dR_m)[3:]],
+     "sign of the position part: prediction minus measurement, Δp̌ − Δp_m"),
+    (_with_theta(lambda dR, dR_m: so3.log(dR.T @ dR_m)),
+     "sign of the attitude part: prediction relative to measurement, ΔŘ ≈ ΔR_m Exp(δθ), so the Log of "
+     "ΔR_mᵀ ΔŘ, not of ΔŘᵀ ΔR_m"),
+    (_with_theta(lambda dR, dR_m: so3.log(dR @ dR_m.T)),
+     "the attitude error is taken on the wrong side: Log(ΔŘ ΔR_mᵀ) is expressed in the clone's frame; the "
+     "current attitude's error δθ lives in the current body frame: ΔR_mᵀ ΔŘ"),
+    (_with_theta(lambda dR, dR_m: so3.log(dR_m @ dR.T)),
+     "side and sign: the attitude error in the current body frame is Log(ΔR_mᵀ ΔŘ)"),
+    (_with_theta(lambda dR, dR_m: so3.log(dR_m @ dR)),
+     "a transpose is missing: compare the two increments as ΔR_mᵀ ΔŘ (the rotation from the measured to "
+     "the predicted one)"),
+    (_swapped,
+     "the increment was predicted from the current pose to the clone: the clone is the EARLIER pose, so "
+     "the motion since then is T_c⁻¹ T (relative_motion(clone, current)), as the VO's increment is"),
+    (lambda pc, Rc, p, R, dp_m, dR_m: np.r_[(p - pc) - dp_m, so3.log(dR_m.T @ Rc.T @ R)],
+     "the predicted displacement is in the navigation frame, the measured one in the clone's body "
+     "frame: predict it with your relative_motion"),
+    (lambda pc, Rc, p, R, dp_m, dR_m: np.r_[_ref_residual(pc, Rc, p, R, dp_m, dR_m)[3:],
+                                            _ref_residual(pc, Rc, p, R, dp_m, dR_m)[:3]],
+     "order: y = [position part; attitude part], as G's rows"),
+]
+
+
+@check(uses=("relative_motion",))
+def check_relative_pose_residual(relative_pose_residual):
+    """``relative_pose_residual(p_clone, R_clone, p_check, R_check, dp_meas, dR_meas)`` returns y (6,).
+
+    The attitude part is accepted within |y_θ|² of the Log (see the module notes).
+    """
+    cases = residual_cases()
+    labels = [c[0] for c in cases]
+    args = [c[1:] for c in cases]
+    got = [_array(call(relative_pose_residual, *a), (6,), f"y ({label})") for a, label in zip(args, labels)]
+    _judge("y", got, args, labels, _ref_residual, _RESIDUAL_MISTAKES,
+           "y = [predicted − measured displacement (clone's body frame); the attitude error of the predicted "
+           "increment against the measured one, as a rotation vector in the current body frame]",
+           atol=_residual_tolerance, rtol=0.0)
+
+
+def _true_poses(pc, Rc, p, R, dx):
+    """The true clone and current poses of nominal ones with the 21-error ``dx`` (error = nominal − true)."""
+    return (pc - dx[15:18], Rc @ so3.exp(-dx[18:21]), p - dx[0:3], R @ so3.exp(-dx[6:9]))
+
+
+def _fd_jacobian(pc, Rc, p, R, h=FD_STEP) -> np.ndarray:
+    """∂y/∂δx (6, 21) at δx = 0 by central differences: the measurement is the true increment."""
+    def residual(dx):
+        tc, TRc, tp, TR = _true_poses(pc, Rc, p, R, dx)
+        return eskf_relative.relative_pose_residual(pc, Rc, p, R, *eskf_relative.relative_motion(tc, TRc, tp, TR))
+
+    return numerical_jacobian(residual, np.zeros(21), h)
+
+
+@functools.lru_cache(maxsize=None)
+def jacobian_cases():
+    """(label, R_clone, Δp̌, ΔŘ, G by central differences) for the nominal pose pairs."""
+    out = []
+    for label, pc, Rc, p, R in pose_pairs():
+        dp, dR = eskf_relative.relative_motion(pc, Rc, p, R)
+        G = _fd_jacobian(pc, Rc, p, R)
+        for arr in (dp, dR, G):
+            arr.setflags(write=False)
+        out.append((f"clone and current pose: {label}", Rc, dp, dR, G))
+    return tuple(out)
+
+
+_G_ROWS = (("y_p", 0, 3), ("y_θ", 3, 6))
+_G_COLS = (("δp", 0, 3), ("δv", 3, 6), ("δθ", 6, 9), ("δb_a", 9, 12), ("δb_ω", 12, 15), ("δp_c", 15, 18),
+           ("δθ_c", 18, 21))
+_G_FORMULAS = {("y_p", "δp"): "Ř_cᵀ", ("y_p", "δp_c"): "−Ř_cᵀ", ("y_p", "δθ_c"): "[Δp̌]×",
+               ("y_θ", "δθ"): "I", ("y_θ", "δθ_c"): "−ΔŘᵀ"}
+
+
+def _g_alternatives(Rc, dp, dR) -> dict:
+    """Known wrong values of the blocks of G, with the hint for each."""
+    hat = so3.hat
+    return {
+        ("y_p", "δp_c"): [
+            (Rc.T, "sign: the clone's position error enters the predicted displacement p̌ − p̌_c with a minus"),
+            (-np.eye(3), "the displacement is seen from the clone's body frame: the clone's position error is "
+                         "rotated like the current one, −Ř_cᵀ"),
+            (-Rc, "R_c = R_nb maps body to navigation; the displacement is seen from the clone: −Ř_cᵀ"),
+        ],
+        ("y_p", "δθ_c"): [
+            (-hat(dp), "sign of the lever arm: with Ř_c = R_c Exp(δθ_c), R_cᵀ = Exp(δθ_c) Ř_cᵀ ≈ (I + [δθ_c]×) Ř_cᵀ, "
+                       "so the true increment is Δp̌ + δθ_c × Δp̌ and y_p gains −δθ_c × Δp̌ = [Δp̌]× δθ_c"),
+            (np.zeros((3, 3)), "missing: an attitude error of the clone turns the frame in which the displacement "
+                               "is seen, so it moves y_p by the lever arm [Δp̌]× δθ_c"),
+            (hat(Rc @ dp), "the lever arm is the displacement in the clone's BODY frame, Δp̌, not in the "
+                           "navigation frame"),
+        ],
+        ("y_θ", "δθ_c"): [
+            (-np.eye(3), "the clone's attitude error lives in the clone's body frame, the residual's attitude "
+                         "part in the current one: rotate it across the increment, −ΔŘᵀ"),
+            (-dR, "transpose: the clone's attitude error is carried into the current body frame by ΔŘᵀ "
+                  "(ΔŘ = Ř_cᵀ Ř maps current-body vectors to clone-body ones)"),
+            (dR.T, "sign: y_θ = Log(ΔR_mᵀ ΔŘ) with ΔŘ = Ř_cᵀ Ř decreases with the clone's attitude error: −ΔŘᵀ"),
+            (np.eye(3), "sign and frame: −ΔŘᵀ"),
+        ],
+    }
+
+
+@check
+def check_relative_pose_jacobian(relative_pose_jacobian):
+    """``relative_pose_jacobian(R_clone, dp_check, dR_check)`` returns G (6, 21).
+
+    Compared with central differences of the residual (see the module notes); a wrong block is
+    named, and the placeholder's empty clone columns are recognised.
+    """
+    for label, Rc, dp, dR, G_fd in jacobian_cases():
+        value = call(relative_pose_jacobian, Rc, dp, dR)
+        if np.shape(value) == (6, 15):
+            raise CheckFailed("G has shape (6, 15), expected (6, 21): the residual also depends on the clone's "
+                              "errors δp_c and δθ_c, columns 15:21 of the augmented error state")
+        G = _array(value, (6, 21), f"G ({label})")
+        if _close(G, G_fd, JACOBIAN_ATOL, rtol=0.0):
+            continue
+        ref = eskf_relative.relative_pose_jacobian(Rc, dp, dR)
+        if _close(G[:, :15], ref[:, :15], JACOBIAN_ATOL, rtol=0.0) and not G[:, 15:].any():
+            raise CheckFailed(f"G's clone columns 15:21 are all zero ({label}): the clone was treated as exactly "
+                              "known. Hint: the residual compares the motion since the clone, so the clone's "
+                              "position and attitude errors move it too; fill the blocks (y_p, δp_c), "
+                              "(y_p, δθ_c) and (y_θ, δθ_c) (lecture 10 §2)")
+        alternatives = _g_alternatives(Rc, dp, dR)
+        for rname, r0, r1 in _G_ROWS:
+            for cname, c0, c1 in _G_COLS:
+                g, e = G[r0:r1, c0:c1], ref[r0:r1, c0:c1]
+                if _close(g, e, JACOBIAN_ATOL, rtol=0.0):
+                    continue
+                where = f"the ({rname}, {cname}) block of G (rows {r0}:{r1}, columns {c0}:{c1}; {label})"
+                for wrong, why in alternatives.get((rname, cname), ()):
+                    if _close(g, wrong, JACOBIAN_ATOL, rtol=0.0):
+                        raise CheckFailed(f"{where} is wrong. Hint: {why}")
+                formula = _G_FORMULAS.get((rname, cname), "0")
+                if not e.any():
+                    raise CheckFailed(f"{where} should be zero: the residual does not depend on {cname}")
+                if not g.any():
+                    raise CheckFailed(f"{where} is missing (all zeros); it should be {formula}")
+                raise CheckFailed(f"{where} differs from central differences of the residual (max abs error "
+                                  f"{np.abs(g - e).max():.3g}). Hint: it is {formula}; make the true poses from "
+                                  "the error (error = nominal − true, Ř = R Exp(δθ)) and expand to first order")
+
+
+# --------------------------------------------------------------------------------------
+# 4. the drift metric
+# --------------------------------------------------------------------------------------
+
+@functools.lru_cache(maxsize=None)
+def drift_cases():
+    """(label, position, rotation, true position, true rotation, first, last, length) per VO system.
+
+    Real: the anchored ORB-SLAM2 / S-PTAM tracks and the ground truth of sequence 00, every
+    ``DRIFT_STRIDE``-th frame; the segments as the drift metric chooses them.
+    """
+    out = []
+    for system in DRIFT_SYSTEMS:
+        s = vo.setup("seq00", system)
+        frames = np.arange(0, DRIFT_FRAMES, DRIFT_STRIDE)
+        truth = s.excerpt.truth
+        p, R = s.vo.position[frames], s.vo.rotation[frames]
+        pt, Rt = truth.position[s.first + frames], truth.rotation[s.first + frames]
+        ref = drift(p, R, pt, Rt, DRIFT_LENGTHS, DRIFT_STEP)
+        case = (p, R, pt, Rt, ref.first.copy(), ref.last.copy(), ref.length.copy())
+        for arr in case:
+            arr.setflags(write=False)
+        out.append((f"{system} on sequence 00, {ref.n_segments} segments of "
+                    f"{', '.join(f'{v:g}' for v in DRIFT_LENGTHS)} m", *case))
+    return tuple(out)
+
+
+def _rel(p, R, i, j):
+    """Δp (S, 3) and ΔR (S, 3, 3) of the segments from frames i to j."""
+    Ri = R[i]
+    return np.einsum("sba,sb->sa", Ri, p[j] - p[i]), np.swapaxes(Ri, -1, -2) @ R[j]
+
+
+def _segment_motion_errors(p, R, pt, Rt, i, j):
+    """|Δp_true − Δp| (m) and angle(ΔRᵀ ΔR_true) (rad) of every segment."""
+    dp, dR = _rel(p, R, i, j)
+    dpt, dRt = _rel(pt, Rt, i, j)
+    return np.linalg.norm(dpt - dp, axis=1), so3.angle(np.swapaxes(dR, -1, -2) @ dRt)
+
+
+def _drift_t(p, R, pt, Rt, i, j, L):
+    return 100.0 * _segment_motion_errors(p, R, pt, Rt, i, j)[0] / L
+
+
+def _drift_r(p, R, pt, Rt, i, j, L):
+    return np.rad2deg(_segment_motion_errors(p, R, pt, Rt, i, j)[1] / L) * 100.0
+
+
+def _per_100m_deg(rad, L):
+    return np.rad2deg(rad / L) * 100.0
+
+
+_DRIFT_MISTAKES = [
+    # (translational formula, rotational formula, why); None: that output is right
+    (lambda p, R, pt, Rt, i, j, L: np.linalg.norm(p[j] - pt[j], axis=1),
+     lambda p, R, pt, Rt, i, j, L: so3.angle(np.swapaxes(Rt[j], -1, -2) @ R[j]),
+     "these are the absolute errors at each segment's end, in m and rad (the placeholder): they include "
+     "every error made before the segment. The drift metric compares the MOTION over the segment (the "
+     "relative pose from its start to its end, estimated vs true) and divides by the segment's length: "
+     "percent, and degrees per 100 m"),
+    (lambda p, R, pt, Rt, i, j, L: 100.0 * np.linalg.norm(p[j] - pt[j], axis=1) / L,
+     lambda p, R, pt, Rt, i, j, L: _per_100m_deg(so3.angle(np.swapaxes(Rt[j], -1, -2) @ R[j]), L),
+     "the absolute error at the segment's end, per length: it carries every error made before the segment "
+     "(a drift metric must not depend on when the first mistake happened). Compare the relative poses "
+     "from the segment's start to its end (your relative_motion on the estimate and on the truth)"),
+    (lambda p, R, pt, Rt, i, j, L: 100.0 * np.linalg.norm((p[j] - p[i]) - (pt[j] - pt[i]), axis=1) / L, None,
+     "the displacements were compared in the navigation frame: a heading error made BEFORE the segment "
+     "turns the whole estimated displacement and counts as drift in it. Compare the motions each in its "
+     "own body frame at the segment's start (your relative_motion)"),
+    (lambda p, R, pt, Rt, i, j, L: 100.0 * np.linalg.norm(
+        np.einsum("sba,sb->sa", R[j], p[j] - p[i]) - np.einsum("sba,sb->sa", Rt[j], pt[j] - pt[i]), axis=1) / L,
+     None,
+     "the displacements are seen from the segment's END; the relative pose T_i⁻¹ T_j sees them from its "
+     "start (relative_motion(start, end))"),
+    (lambda p, R, pt, Rt, i, j, L: 100.0 * np.abs(np.linalg.norm(_rel(pt, Rt, i, j)[0], axis=1)
+                                                  - np.linalg.norm(_rel(p, R, i, j)[0], axis=1)) / L, None,
+     "only the lengths of the two displacements were compared: a displacement in the wrong direction but "
+     "of the right length would count as no error. Take the length of their difference"),
+    (lambda p, R, pt, Rt, i, j, L: 100.0 * _segment_motion_errors(p, R, pt, Rt, i, j)[0]
+     / np.linalg.norm(_rel(pt, Rt, i, j)[0], axis=1), None,
+     "divided by the straight-line distance between the segment's ends; the metric divides by the "
+     "segment's length L along the path (the `length` argument)"),
+    (lambda p, R, pt, Rt, i, j, L: _segment_motion_errors(p, R, pt, Rt, i, j)[0] / L, None,
+     "that is a fraction (m per m); the translational error is in percent of the segment length"),
+    (lambda p, R, pt, Rt, i, j, L: 100.0 * _segment_motion_errors(p, R, pt, Rt, i, j)[0], None,
+     "not divided by the segment's length: the translational error is per length travelled, in %"),
+    (lambda p, R, pt, Rt, i, j, L: _segment_motion_errors(p, R, pt, Rt, i, j)[0], None,
+     "that is the error in metres; the translational error is per length travelled: 100 · error / L (%)"),
+    (None, lambda p, R, pt, Rt, i, j, L: _segment_motion_errors(p, R, pt, Rt, i, j)[1] / L * 100.0,
+     "radians: the rotational error is in DEGREES per 100 m"),
+    (None, lambda p, R, pt, Rt, i, j, L: np.rad2deg(_segment_motion_errors(p, R, pt, Rt, i, j)[1] / L),
+     "that is degrees per METRE; the unit is degrees per 100 m (× 100)"),
+    (None, lambda p, R, pt, Rt, i, j, L: np.rad2deg(_segment_motion_errors(p, R, pt, Rt, i, j)[1]),
+     "not divided by the segment's length: the rotational error is per length travelled, in degrees per "
+     "100 m"),
+    (None, lambda p, R, pt, Rt, i, j, L: _segment_motion_errors(p, R, pt, Rt, i, j)[1] / L,
+     "radians per metre: the unit is degrees per 100 m"),
+    (None, lambda p, R, pt, Rt, i, j, L: _per_100m_deg(np.abs(so3.angle(_rel(pt, Rt, i, j)[1])
+                                                              - so3.angle(_rel(p, R, i, j)[1])), L),
+     "angles do not subtract: two rotations by the same angle about different axes differ. Take the "
+     "angle of the rotation between the two relative rotations, ΔRᵀ ΔR_true"),
+    (None, lambda p, R, pt, Rt, i, j, L: _per_100m_deg(np.linalg.norm(
+        so3.log(_rel(pt, Rt, i, j)[1]) - so3.log(_rel(p, R, i, j)[1]), axis=1), L),
+     "rotation vectors do not subtract: take the angle of the rotation between the two relative "
+     "rotations, ΔRᵀ ΔR_true"),
+    (None, lambda p, R, pt, Rt, i, j, L: _per_100m_deg(so3.angle(np.swapaxes(Rt[i], -1, -2) @ R[i]
+                                                                 @ np.swapaxes(R[j], -1, -2) @ Rt[j]), L),
+     "the rotations were compared in the navigation frame: the relative rotation of the segment is "
+     "R_iᵀ R_j (your relative_motion) for the estimate and for the truth"),
+    (lambda p, R, pt, Rt, i, j, L: _drift_r(p, R, pt, Rt, i, j, L), lambda p, R, pt, Rt, i, j, L: _drift_t(
+        p, R, pt, Rt, i, j, L), "the two outputs are swapped: (translational error %, rotational error °/100 m)"),
+]
+
+
+@check(uses=("relative_motion",))
+def check_drift_segments(segment_errors):
+    """``segment_errors(position, rotation, true_position, true_rotation, first, last, length)`` returns
+    (translational error % (S,), rotational error °/100 m (S,))."""
+    cases = drift_cases()
+    labels = [c[0] for c in cases]
+    args = [c[1:] for c in cases]
+    results = [_pair(call(segment_errors, *a), "segment_errors", ("t_err", "r_err")) for a in args]
+    S = [len(a[4]) for a in args]
+    t = [_array(r[0], (n,), f"the translational errors ({label})") for r, n, label in zip(results, S, labels)]
+    r = [_array(r[1], (n,), f"the rotational errors ({label})") for r, n, label in zip(results, S, labels)]
+    t_ok = all(_close(g, _drift_t(*a), ATOL, DRIFT_RTOL) for g, a in zip(t, args))
+    r_ok = all(_close(g, _drift_r(*a), ATOL, DRIFT_RTOL) for g, a in zip(r, args))
+    if t_ok and r_ok:
+        return
+    for t_wrong, r_wrong, why in _DRIFT_MISTAKES:
+        if (all(_close(g, _evaluate(t_wrong or _drift_t, a), ATOL, DRIFT_RTOL) for g, a in zip(t, args))
+                and all(_close(g, _evaluate(r_wrong or _drift_r, a), ATOL, DRIFT_RTOL) for g, a in zip(r, args))):
+            what = "both outputs are" if t_wrong and r_wrong else \
+                "the translational errors are" if t_wrong else "the rotational errors are"
+            raise CheckFailed(f"{what} wrong ({labels[0]}). Hint: {why}")
+    if not t_ok:
+        _judge("the translational errors (%)", t, args, labels, _drift_t, (),
+               "100 |Δp_true − Δp| / L: the difference of the displacements over the segment, each seen from "
+               "the segment's start (relative_motion), in % of the segment's length L", rtol=DRIFT_RTOL)
+    _judge("the rotational errors (°/100 m)", r, args, labels, _drift_r, (),
+           "the angle of ΔRᵀ ΔR_true (the relative rotations of the segment, estimated and true) per segment "
+           "length, in degrees per 100 m", rtol=DRIFT_RTOL)
+
+
+# --------------------------------------------------------------------------------------
+# challenge: one step of choosing the VO noise by the NIS
+# --------------------------------------------------------------------------------------
+
+@functools.lru_cache(maxsize=None)
+def nis_cases():
+    """(label, σ, innovations (N, m), S (N, m, m)) of the relative VO filter's first NIS_SECONDS.
+
+    Real IMU and VO (ORB-SLAM2, S-PTAM); each run with σ = factor × (1 cm, 0.01°) per component,
+    cut into the blocks :data:`NIS_BLOCKS`.
+    """
+    out = []
+    for system in DRIFT_SYSTEMS:
+        s = vo.setup("seq00", system)
+        for factor in NIS_FACTORS:
+            std = factor * _NIS_STD0
+            res = vo.run_relative_vo(s, tuple(std), t_end=float(s.t[0] + NIS_SECONDS))
+            y, S = np.array(res.innovation), np.array(res.S)
+            for a, b in NIS_BLOCKS:
+                yb, Sb = np.ascontiguousarray(y[:, a:b]), np.ascontiguousarray(S[:, a:b, a:b])
+                for arr in (yb, Sb):
+                    arr.setflags(write=False)
+                unit = "m" if b <= 3 else "rad"
+                out.append((f"{system}, σ = {std[a]:.3g} {unit}, components {a}:{b} of {len(yb)} increments",
+                            float(std[a]), yb, Sb))
+    return tuple(out)
+
+
+def _block_nis(y, S):
+    return metrics.nis(y, S)
+
+
+def _ratio(y, S, statistic=np.median, target=None):
+    m = y.shape[1]
+    return statistic(_block_nis(y, S)) / (metrics.chi2_ppf(0.5, m) if target is None else target(m))
+
+
+def _ref_std(std, y, S):
+    return std * np.sqrt(_ratio(y, S))
+
+
+def _diagonal(S):
+    return S * np.eye(S.shape[-1])
+
+
+_NIS_MISTAKES = [
+    (lambda std, y, S: std,
+     "σ came back unchanged: the innovations were not used (the placeholder). Compute each increment's "
+     "NIS, compare its median with the χ² median of as many degrees of freedom as components, and scale σ "
+     "so that the ratio would become 1 if S scaled like R"),
+    (lambda std, y, S: std * np.sqrt(_ratio(y, S, statistic=np.mean)),
+     "the MEAN NIS was used: the real innovations have a heavy tail (VO glitches, interpolated IMU "
+     "samples), which the mean follows and the median ignores; compare the median with the χ² median"),
+    (lambda std, y, S: std * np.sqrt(_ratio(y, S, target=lambda m: m)),
+     "the median NIS was compared with m, the MEAN of χ²(m); the median of χ²(m) is lower "
+     "(chi2_ppf(0.5, m): 0.455 for one component, 2.37 for three)"),
+    (lambda std, y, S: std * np.sqrt(_ratio(y, S, statistic=np.mean, target=lambda m: m)),
+     "mean NIS against m: the real innovations have a heavy tail that the mean follows; use the median "
+     "NIS and the median of χ²(m)"),
+    (lambda std, y, S: std * _ratio(y, S),
+     "σ was scaled by the ratio of NIS values itself: a NIS scales like a VARIANCE (ν²/S), so σ scales with "
+     "its square root"),
+    (lambda std, y, S: std / np.sqrt(_ratio(y, S)),
+     "the ratio is upside down: a median NIS ABOVE the χ² median means the innovations are larger than S "
+     "says, so σ must grow"),
+    (lambda std, y, S: std ** 2 * _ratio(y, S),
+     "that is a variance (σ²); return the standard deviation σ"),
+    (lambda std, y, S: std * np.sqrt(_ratio(y, S, target=lambda m: metrics.chi2_ppf(0.5, 6))),
+     "the χ² median of 6 degrees of freedom for every block: use as many as the block has components "
+     "(innovation.shape[1])"),
+    (lambda std, y, S: std * np.sqrt(_ratio(y, S, target=lambda m: metrics.chi2_ppf(0.5, 3))),
+     "the χ² median of 3 degrees of freedom for every block: use as many as the block has components "
+     "(innovation.shape[1])"),
+    (lambda std, y, S: std * np.sqrt(_ratio(y, _diagonal(S))),
+     "only the diagonal of S was used: the components of one increment's innovation are correlated "
+     "through the filter's covariance; the NIS is νᵀ S⁻¹ ν with the whole S"),
+    (lambda std, y, S: std * float(np.clip(np.sqrt(_ratio(y, S)), 0.5, 2.0)),
+     "the step was clipped to [½, 2]: this function returns the unclipped σ (the loop that calls it limits "
+     "its steps)"),
+]
+
+
+@check
+def check_nis_rescaled_std(rescaled_std):
+    """``rescaled_std(std, innovation, S)`` returns the next σ (a number) for one block."""
+    cases = nis_cases()
+    labels = [c[0] for c in cases]
+    args = [c[1:] for c in cases]
+    got = []
+    for a, label in zip(args, labels):
+        value = as_array(call(rescaled_std, *a), f"the new σ ({label})")
+        if value.size != 1:
+            raise CheckFailed(f"the new σ ({label}) should be one number, got shape {value.shape}. Hint: one σ "
+                              "for the whole block: the median of the NIS of all increments, not one per "
+                              "increment or per component")
+        got.append(value.reshape(()))
+    _judge("the new σ", got, args, labels, _ref_std, _NIS_MISTAKES,
+           "σ × √(median NIS / χ² median), the NIS of each increment with the block's whole S, the χ² median "
+           "of as many degrees of freedom as the block has components", atol=0.0)
