@@ -262,6 +262,10 @@ def test_the_comparison_on_a_slice_has_every_row_and_a_labelled_table(slice_comp
     for needle in ("Real:", "simulated: the GNSS noise", "real VO + real IMU", "simulated noise σ 1 m",
                    "NIS-tuned", *vo_chapter.METHODS.values()):
         assert needle in text
+    # wall-clock times only when asked: a lecture stores the default table and nbval compares it
+    assert "run [s]" not in text and "tuning took" not in text
+    timed = vo_chapter.table(c, timings=True)
+    assert "| run [s] |" in timed and "tuning took" in timed and timed.count("\n| ") == len(c.rows) + 1
     with pytest.raises(ValueError, match="no row"):
         c.row("DSO", "vo")
     with pytest.raises(ValueError, match="comparison must be a VoComparison"):

@@ -235,8 +235,11 @@ class ColouredNoiseResult:
             raise ValueError(f"remedy must be one of {', '.join(self.remedies)}, got {remedy!r}")
         return self.remedies.index(remedy)
 
-    def table(self) -> str:
-        """A fixed-width table: per τ, the raw poses and each filter, median (min–max) over the seeds."""
+    def table(self, timings: bool = False) -> str:
+        """A fixed-width table: per τ, the raw poses and each filter, median (min–max) over the seeds.
+
+        ``timings`` adds the wall-clock run time (left out by default: it differs from run to
+        run, and a lecture's stored output must not)."""
         lo, hi = self.nees_band
         n = len(self.seeds)
         seeds = ", ".join(str(s) for s in self.seeds)
@@ -263,7 +266,8 @@ class ColouredNoiseResult:
                 nees = self.spread("nees_pose", tau, remedy).text(".1f")
                 lines.append(f"{'':5s}  {label:26s} {ape:>21s} {rp:>21s} {ra:>21s} {nees:>23s} "
                              f"{self.nees_mean[i, j]:6.1f}  {self.verdict(tau, remedy)}")
-        lines.append(f"runtime {self.runtime:.1f} s")
+        if timings:
+            lines.append(f"runtime {self.runtime:.1f} s")
         return "\n".join(lines)
 
 

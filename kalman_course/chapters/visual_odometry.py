@@ -644,13 +644,14 @@ def _format_std(std) -> str:
     return f"p {p} m, θ {th}°"
 
 
-def table(comparison: VoComparison) -> str:
+def table(comparison: VoComparison, timings: bool = False) -> str:
     """The comparison as a Markdown table, saying which inputs are real and which simulated.
 
     Columns: VO system, estimate, ATE (m, no alignment beyond the anchor pose), RMS attitude
     error (°), KITTI drift (translational %, rotational °/100 m, 100–800 m segments), mean
-    6-dof pose NEES (6 if consistent), the R used (σ_p, σ_θ) and how it was chosen, the run
-    time, and the inputs.
+    6-dof pose NEES (6 if consistent), the R used (σ_p, σ_θ) and how it was chosen, the
+    inputs, and with ``timings`` the wall-clock run and tuning times (left out by default: they
+    differ from run to run, and a lecture's stored output must not).
     """
     if not isinstance(comparison, VoComparison):
         raise ValueError(f"comparison must be a VoComparison (from compare), got {type(comparison).__name__}")
@@ -662,8 +663,8 @@ def table(comparison: VoComparison) -> str:
         "simulated: the GNSS noise (σ 1 m, seeded).",
         "",
         "| VO | estimate | ATE [m] | attitude [°] | drift [%] | drift [°/100 m] | mean NEES (6) "
-        "| R: σ per axis | run [s] | inputs |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| R: σ per axis | inputs |" + (" run [s] |" if timings else ""),
+        "|---|---|---|---|---|---|---|---|---|" + ("---|" if timings else ""),
     ]
     for r in comparison.rows:
         sc = r.score
@@ -673,13 +674,14 @@ def table(comparison: VoComparison) -> str:
         else:
             how = "given" if r.tuned is None else ("NIS-tuned" if r.tuned.converged else "NIS-tuned, not converged")
             noise = f"{_format_std(r.std)} ({how})"
-        runtime = "—" if r.method == "vo" else f"{r.runtime_s:.2f}"
+        runtime = ("—" if r.method == "vo" else f"{r.runtime_s:.2f}") + " |" if timings else ""
         lines.append(f"| {r.system} | {r.label} | {sc.ate:.2f} | {sc.attitude_deg:.2f} | "
                      f"{sc.drift.translation_percent:.2f} | {sc.drift.rotation_deg_per_100m:.3f} | {nees} | "
-                     f"{noise} | {runtime} | {_INPUTS[r.method]} |")
+                     f"{noise} | {_INPUTS[r.method]} | {runtime}")
     lines.append("")
     lines.append(f"R tuned without the truth on the first {comparison.calibration_s:g} s: absolute poses, the median "
                  f"NIS of the position and attitude blocks at the χ²(3) median; increments, the median NIS of each "
-                 f"component at the χ²(1) median (tuning took {comparison.tuning_s:.1f} s). Process noise, prior and "
+                 f"component at the χ²(1) median" + (f" (tuning took {comparison.tuning_s:.1f} s)" if timings else "")
+                 + ". Process noise, prior and "
                  f"GNSS σ: configuration {_CONFIG!r} of chapter 08.")
     return "\n".join(lines)

@@ -105,7 +105,7 @@ def plot_standstill(stats, spans, *, gravity_tolerance_mg=2.0, rate_max_dps=0.5,
         ax.plot(t, values * scale, color=COLORS["estimate"], lw=0.8, label="statistic")
         ax.axhline(float(threshold), color=COLORS["bounds"], lw=1.0, ls="--", label="threshold")
         ax.set(ylabel=ylabel, yscale="log")
-    axes[0].legend(loc="upper right")
+    axes[0].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")  # beside the data
     if truth is not None:
         if len(truth) != 2:
             raise ValueError("truth must be a pair (t, speed)")
@@ -114,7 +114,7 @@ def plot_standstill(stats, spans, *, gravity_tolerance_mg=2.0, rate_max_dps=0.5,
         shade_spans(axes[3], spans, label="still")
         axes[3].plot(tt, speed, color=COLORS["truth"], lw=1.0, label="true speed (not used)")
         axes[3].set(ylabel="speed [m/s]")
-        axes[3].legend(loc="upper right")
+        axes[3].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
     axes[-1].set(xlabel="t [s]")
     _set_xlim(axes[-1], xlim)
     fig.tight_layout()
@@ -158,7 +158,7 @@ def plot_start_comparison(runs, *, agreement_time=None, title="", xlim=None, fig
             ax.axvline(float(agreement_time), color=COLORS["truth"], lw=0.8, ls=":",
                        label=f"agree from {float(agreement_time):.1f} s")
     axes[1].axhline(0.0, color=COLORS["truth"], lw=0.6)
-    axes[0].legend(loc="upper right")
+    axes[0].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")  # beside the data
     axes[0].set_title(title)
     axes[-1].set(xlabel="t [s]")
     _set_xlim(axes[-1], xlim)

@@ -40,7 +40,7 @@ def plot_vo_tracks(truth_xy, tracks, *, title="", ax=None, figsize=(7, 6)):
     Returns
     -------
     matplotlib.figure.Figure
-        Equal aspect, axes in metres, the legend in the upper left.
+        Equal aspect, axes in metres, the legend under the axes (the tracks fill them).
     """
     truth_xy = _points(truth_xy, "truth_xy")
     tracks = {label: _points(xy, f"tracks[{label!r}]") for label, xy in _mapping(tracks, "tracks").items()}
@@ -56,7 +56,7 @@ def plot_vo_tracks(truth_xy, tracks, *, title="", ax=None, figsize=(7, 6)):
     ax.plot(*truth_xy[0, :2], "o", color="black", ms=5, label="start (anchor)")
     ax.set(xlabel="east [m]", ylabel="north [m]", title=title)
     ax.set_aspect("equal")
-    ax.legend(loc="upper left", fontsize="small")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize="small", frameon=False)
     return fig
 
 
