@@ -22,6 +22,7 @@ from kalman_course.core import so3  # noqa: E402
 from kalman_course.data import GaussMarkovErrors, MapMatchingFailures, WhiteErrors  # noqa: E402
 from kalman_course.evaluation.drift import drift  # noqa: E402
 from kalman_course.filters.eskf_relative import relative_motion, relative_pose_jacobian  # noqa: E402
+from kalman_course.plotting import plot_error_draws  # noqa: E402
 
 
 @pytest.fixture(autouse=True)
@@ -163,7 +164,7 @@ def test_error_draws_figure():
     draws = {"white": WhiteErrors(0.2, 0.3).draw(t, np.random.default_rng(0)),
              "GM": gm.draw(t, np.random.default_rng(0)),
              "GM + failures": failing.draw(t, np.random.default_rng(0))}
-    fig = rs.plot_error_draws(t, draws, sigma=0.2, axis=1, title="simulated")
+    fig = plot_error_draws(t, draws, sigma=0.2, axis=1, title="simulated")
     assert len(fig.axes) == 3
     assert [ax.get_title(loc="left") for ax in fig.axes] == list(draws)
     assert fig.axes[-1].get_xlabel() == "t [s]" and fig.axes[0].get_ylabel() == "δp_y [m]"
@@ -202,11 +203,11 @@ _DRAW = WhiteErrors(0.2, 0.3).draw(_T, np.random.default_rng(0))
                                np.tile(np.eye(3), (5, 1, 1)), [0], [5], [1.0]), "first and last"),
     (lambda: rs.segment_errors(np.zeros((5, 3)), np.tile(np.eye(3), (5, 1, 1)), np.zeros((5, 3)),
                                np.tile(np.eye(3), (5, 1, 1)), [0.0], [4.0], [1.0]), "first and last"),
-    (lambda: rs.plot_error_draws(_T, {}, sigma=0.2), "draws"),
-    (lambda: rs.plot_error_draws(_T, {"a": _DRAW}, sigma=0.0), "sigma"),
-    (lambda: rs.plot_error_draws(_T, {"a": _DRAW}, sigma=0.2, axis=3), "axis"),
-    (lambda: rs.plot_error_draws(_T[::-1], {"a": _DRAW}, sigma=0.2), "t must"),
-    (lambda: rs.plot_error_draws(_T[:5], {"a": _DRAW}, sigma=0.2), "draws\\['a'\\]"),
+    (lambda: plot_error_draws(_T, {}, sigma=0.2), "draws"),
+    (lambda: plot_error_draws(_T, {"a": _DRAW}, sigma=0.0), "sigma"),
+    (lambda: plot_error_draws(_T, {"a": _DRAW}, sigma=0.2, axis=3), "axis"),
+    (lambda: plot_error_draws(_T[::-1], {"a": _DRAW}, sigma=0.2), "t must"),
+    (lambda: plot_error_draws(_T[:5], {"a": _DRAW}, sigma=0.2), "draws\\['a'\\]"),
 ])
 def test_bad_input_raises_a_value_error_naming_it(call, match):
     with pytest.raises(ValueError, match=match):

@@ -61,9 +61,9 @@ import numpy as np
 
 from kalman_course.checks.harness import CheckFailed, as_array, call, check, type_name
 from kalman_course.chapters import visual_odometry as vo
+from kalman_course.chapters.real_sensors import relative_jacobian_by_differences
 from kalman_course.core import so3
 from kalman_course.core.linalg import symmetrise
-from kalman_course.core.numdiff import numerical_jacobian
 from kalman_course.data import load_kitti
 from kalman_course.evaluation import metrics
 from kalman_course.evaluation.drift import drift
@@ -179,8 +179,7 @@ def _array(value, shape: tuple, what: str, diag_hint: bool = False) -> np.ndarra
 # 1. the Gauss–Markov blocks
 # --------------------------------------------------------------------------------------
 
-def _phi(T, tau):
-    return np.exp(-T / tau)
+_phi = eskf_augmented.gauss_markov_decay
 
 
 def _gm_F(sigma, T, tau):
@@ -578,27 +577,13 @@ def check_relative_pose_residual(relative_pose_residual):
            atol=_residual_tolerance, rtol=0.0)
 
 
-def _true_poses(pc, Rc, p, R, dx):
-    """The true clone and current poses of nominal ones with the 21-error ``dx`` (error = nominal − true)."""
-    return (pc - dx[15:18], Rc @ so3.exp(-dx[18:21]), p - dx[0:3], R @ so3.exp(-dx[6:9]))
-
-
-def _fd_jacobian(pc, Rc, p, R, h=FD_STEP) -> np.ndarray:
-    """∂y/∂δx (6, 21) at δx = 0 by central differences: the measurement is the true increment."""
-    def residual(dx):
-        tc, TRc, tp, TR = _true_poses(pc, Rc, p, R, dx)
-        return eskf_relative.relative_pose_residual(pc, Rc, p, R, *eskf_relative.relative_motion(tc, TRc, tp, TR))
-
-    return numerical_jacobian(residual, np.zeros(21), h)
-
-
 @functools.lru_cache(maxsize=None)
 def jacobian_cases():
     """(label, R_clone, Δp̌, ΔŘ, G by central differences) for the nominal pose pairs."""
     out = []
     for label, pc, Rc, p, R in pose_pairs():
         dp, dR = eskf_relative.relative_motion(pc, Rc, p, R)
-        G = _fd_jacobian(pc, Rc, p, R)
+        G = relative_jacobian_by_differences(pc, Rc, p, R, FD_STEP)
         for arr in (dp, dR, G):
             arr.setflags(write=False)
         out.append((f"clone and current pose: {label}", Rc, dp, dR, G))

@@ -33,7 +33,7 @@ from kalman_course.plotting.consistency import plot_gating, plot_monte_carlo, pl
 from kalman_course.plotting.intuition import (plot_cost_iterates, plot_gain_convergence, plot_gain_limits,
                                               plot_gaussian_product, plot_kf_1d_steps, plot_radar_linearisation)
 # chapter 10, real sensors
-from kalman_course.plotting.coloured_noise import plot_coloured_noise
+from kalman_course.plotting.coloured_noise import plot_coloured_noise, plot_error_draws
 from kalman_course.plotting.visual_odometry import plot_drift_by_length, plot_vo_tracks
 from kalman_course.plotting.initialisation import plot_p0_scaling, plot_standstill, plot_start_comparison
 from kalman_course.plotting.bias_models import plot_bias_models
@@ -56,6 +56,6 @@ __all__ = [
     "plot_radar_linearisation", "plot_cost_iterates",
     "Box", "Arrow", "Diagram", "draw_block_diagram", "plot_bayes_filter_diagram", "plot_eskf_diagram",
     # chapter 10, real sensors
-    "plot_coloured_noise", "plot_vo_tracks", "plot_drift_by_length", "plot_standstill", "plot_start_comparison",
+    "plot_error_draws", "plot_coloured_noise", "plot_vo_tracks", "plot_drift_by_length", "plot_standstill", "plot_start_comparison",
     "plot_p0_scaling", "plot_bias_models",
 ]

@@ -13,9 +13,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from kalman_course.plotting.vocabulary import COLORS, CURVE_COLORS, _bounds
+from kalman_course.core.validation import as_rows, as_scalar
+from kalman_course.plotting.vocabulary import COLORS, CURVE_COLORS, _bounds, flag_spans, shade_spans
 
-__all__ = ["plot_coloured_noise"]
+__all__ = ["plot_error_draws", "plot_coloured_noise"]
+
+_AXES = "xyz"
 
 #: Legend names of the filters of ``chapters.coloured_noise.REMEDIES``.
 _LEGEND = {
@@ -131,4 +134,93 @@ def plot_coloured_noise(result, *, accuracy: bool = True, figsize=None):
         handles, labels = handles + extra[0][:1], labels + extra[1][:1]
     fig.tight_layout(rect=(0, 0.16 if accuracy else 0.2, 1, 1))
     fig.legend(handles, labels, loc="lower center", ncol=3 if accuracy else 2, fontsize=8, frameon=False)
+    return fig
+
+
+# ---------------------------------------------------------------------------------------
+# the errors themselves, for intuition (lecture 10 §1)
+# ---------------------------------------------------------------------------------------
+
+def plot_error_draws(t, draws, *, sigma, axis: int = 0, title: str = "", figsize=(11, 6.5)):
+    """One simulated position-error sequence per panel, over ±σ and ±2σ lines.
+
+    Parameters
+    ----------
+    t : array_like, shape (K,)
+        Observation times, s.
+    draws : mapping of str to ErrorDraw
+        Panel title -> a draw of an error model at ``t``
+        (:meth:`kalman_course.data.observation_errors.ObservationErrors.draw`), one to four.
+        Where a draw has map-matching failures, the observations inside a jump are shaded
+        and the outliers circled.
+    sigma : float
+        σ of the drawn position component, m (the dashed lines at ±σ, dotted at ±2σ).
+    axis : int
+        Position component drawn: 0, 1 or 2 (x, y, z of the navigation frame).
+    title : str
+        Figure title (say there that the errors are simulated).
+    figsize : tuple
+        Figure size.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        One panel per draw, sharing t [s]. The panels without failures share one vertical
+        scale (at least ±3σ), so that their errors compare at a glance; a panel with
+        failures scales to its jumps and outliers.
+
+    Raises
+    ------
+    ValueError
+        If ``t`` is not increasing, ``draws`` is empty, holds more than four entries or a
+        draw of the wrong length, ``sigma`` is not positive or ``axis`` is not 0, 1 or 2.
+    """
+    import matplotlib.pyplot as plt
+
+    t = as_rows(t, "t")
+    if len(t) < 2 or (np.diff(t) <= 0.0).any():
+        raise ValueError("t must hold at least two strictly increasing times")
+    if not hasattr(draws, "items") or not 1 <= len(draws) <= 4:
+        raise ValueError("draws must be a mapping of 1 to 4 labels -> error draws")
+    sigma = as_scalar(sigma, "sigma")
+    if isinstance(axis, bool) or axis not in (0, 1, 2):
+        raise ValueError(f"axis must be 0, 1 or 2 (x, y, z), got {axis!r}")
+    rows = {}
+    for label, draw in draws.items():
+        error = np.asarray(draw.error, dtype=float) if hasattr(draw, "error") else None
+        if error is None or error.shape != (len(t), 6):
+            raise ValueError(f"draws[{label!r}] must be an error draw with error of shape ({len(t)}, 6)")
+        jumps, outliers = getattr(draw, "jumps", None), getattr(draw, "outliers", None)
+        rows[label] = (error[:, axis], None if jumps is None else np.asarray(jumps, dtype=bool),
+                       None if outliers is None else np.asarray(outliers, dtype=bool))
+    plain = [np.abs(e).max() for e, jumps, outliers in rows.values() if jumps is None and outliers is None]
+    limit = 1.1 * max([3.0 * sigma] + plain)
+
+    fig, axes = plt.subplots(len(rows), 1, figsize=figsize, sharex=True, squeeze=False)
+    axes = axes[:, 0]
+    for ax, (label, (e, jumps, outliers)) in zip(axes, rows.items()):
+        if jumps is not None:
+            shade_spans(ax, flag_spans(t, jumps), label="inside a jump (a wrong match held)")
+        for k, style in ((1, "--"), (2, ":")):
+            ax.axhline(k * sigma, color=COLORS["bounds"], lw=0.8, ls=style, label=f"±{k}σ")
+            ax.axhline(-k * sigma, color=COLORS["bounds"], lw=0.8, ls=style)
+        ax.axhline(0.0, color=COLORS["truth"], lw=0.6)
+        ax.plot(t, e, ".-", color=COLORS["estimate"], ms=2.5, lw=0.6, label="error of each simulated pose")
+        if outliers is not None and outliers.any():
+            ax.plot(t[outliers], e[outliers], "o", mfc="none", color=COLORS["marker"], ms=7, label="outlier")
+        if jumps is None and outliers is None:
+            ax.set_ylim(-limit, limit)
+        ax.set_title(label, fontsize=10, loc="left")
+        ax.set_ylabel(f"δp_{_AXES[axis]} [m]")
+    axes[-1].set_xlabel("t [s]")
+    handles, labels = [], []
+    for ax in axes:
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            if lab not in labels:
+                handles.append(h)
+                labels.append(lab)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout(rect=(0, 0, 0.8, 1))
+    fig.legend(handles, labels, loc="center left", bbox_to_anchor=(0.8, 0.5), fontsize=8, frameon=False)
     return fig
