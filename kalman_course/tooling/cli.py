@@ -14,6 +14,7 @@ data      rebuild the shipped KITTI excerpts from the PyPI packages
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 from pathlib import Path
@@ -99,12 +100,55 @@ def _cmd_grade(args: argparse.Namespace) -> int:
         positions = grading.shard_of(submissions, *args.shard)
         submissions = [submissions[i] for i in positions]
         print(f"shard {args.shard[0]}/{args.shard[1]}: {len(submissions)} of {class_size} notebooks", flush=True)
+    sandbox = _open_sandbox(args, grading_a_class=any(learner != "-" for _, learner in submissions))
+    if sandbox is False:
+        return 2
+    from kalman_course.tooling import sealed
+
+    sealed.preload()  # nothing is imported once a learner's kernel runs
+    fingerprint = sealed.Fingerprint()
     jobs = args.jobs or os.cpu_count() or 1
+    where = "in a sandbox of its own" if sandbox else "not sandboxed"
     print(f"grading {len(submissions)} notebook(s), {min(jobs, len(submissions))} at a time, "
-          "each in a kernel of its own ...", flush=True)
-    results = grading.grade_many(submissions, release, timeout=args.timeout, jobs=jobs, progress=progress,
-                                 order=positions, class_size=class_size)
+          f"each in a kernel of its own, {where} ...", flush=True)
+    try:
+        with sealed.OrphanReaper():  # what a kernel left running ends before any gradebook is written
+            results = grading.grade_many(submissions, release, timeout=args.timeout, jobs=jobs,
+                                         progress=progress, order=positions, class_size=class_size,
+                                         sandbox=sandbox)
+    except grading.GradingInterrupted as stop:
+        done = sum(r is not None for r in stop.results)
+        print(f"\ninterrupted: {done} of {len(submissions)} notebook(s) graded; every kernel ended, "
+              "no gradebook written", file=sys.stderr, flush=True)
+        return 130
+    changed = fingerprint.changes()
+    if changed:
+        print("error: files that decide what the grader runs changed while it graded (a learner's kernel "
+              "wrote them?); no gradebook written. Reinstall the course before grading again:", file=sys.stderr)
+        for line in changed[:20]:
+            print(f"  {line}", file=sys.stderr)
+        return 2
+    args.sandbox_text = sandbox.describe() if sandbox else "none (--no-sandbox)" if args.no_sandbox else "none"
     return _report(results, args)
+
+
+def _open_sandbox(args: argparse.Namespace, grading_a_class: bool):
+    """The sandbox kernels start in; None to run without one; False to refuse (printed why)."""
+    from kalman_course.tooling.sandbox import SandboxUnavailable, open_sandbox
+
+    if args.no_sandbox:
+        print("note: --no-sandbox: learners' kernels run with your permissions (the gradebook records it)",
+              flush=True)
+        return None
+    try:
+        return open_sandbox()
+    except SandboxUnavailable as exc:
+        if grading_a_class:
+            print(f"error: grading a class needs the sandbox: {exc}. Pass --no-sandbox to grade without "
+                  "one (the gradebook records it).", file=sys.stderr)
+            return False
+        print(f"note: grading your own notebook without a sandbox ({exc})", flush=True)
+        return None
 
 
 def _report(results, args) -> int:
@@ -250,6 +294,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="submissions graded in parallel, each in its own kernel (default: number of cores)")
     p.add_argument("--all-hints", action="store_true",
                    help="list every failed check with its hint under the table (default: the first per notebook)")
+    p.add_argument("--no-sandbox", action="store_true",
+                   help="run learners' kernels without bubblewrap (not advised for a class; recorded in the gradebook)")
     p.add_argument("--shard", type=_shard, metavar="K/N",
                    help="grade only shard K of N (learners dealt round-robin); combine them with merge")
     p.set_defaults(func=_cmd_grade)
@@ -282,6 +328,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from kalman_course.tooling import sealed
+
+    if argv is None and sys.argv[1:2] == ["grade"] and not sealed.is_sealed():
+        # grade in a sealed interpreter: no user site, no bytecode read or written (see sealed)
+        command = sealed.seal_argv(sys.argv[1:])
+        os.execv(command[0], command)
+    if sealed.is_sealed() and os.path.basename(sys.pycache_prefix).startswith("kalman-course-pyc-"):
+        with contextlib.suppress(OSError):
+            os.rmdir(sys.pycache_prefix)  # empty: -B writes nothing there
     parser = build_parser()
     args, extra = parser.parse_known_args(argv)
     if extra and args.command == "export":

@@ -31,9 +31,9 @@ from kalman_course.tooling.review import review_flags
 
 
 #: Statuses of a graded notebook. Only GRADED and TAMPERED_RESTORED ran to the end.
-GRADED, TAMPERED_RESTORED, TIMED_OUT, KERNEL_DIED, NOT_A_NOTEBOOK, NO_RELEASE, RUN_ERROR = (
+GRADED, TAMPERED_RESTORED, TIMED_OUT, KERNEL_DIED, NOT_A_NOTEBOOK, NO_RELEASE, RUN_ERROR, WORKER_DIED = (
     "graded", "tampered and restored", "timed out", "kernel died", "not a notebook", "no release",
-    "run error")
+    "run error", "grading worker died")
 RAN_TO_THE_END = (GRADED, TAMPERED_RESTORED)
 
 #: In a class folder, ``alice__03_kalman_filter.ipynb`` belongs to learner ``alice``.
@@ -341,29 +341,23 @@ def run_graded(nb, *, timeout: float = 120.0, compare: bool = False, session=Non
 _spare_session = None
 
 
-def _fresh_session(timeout: float):
+def _fresh_session(timeout: float, sandbox=None):
     """A new kernel for one notebook: the one started ahead, if any (and then start the next)."""
     from kalman_course.tooling.kernel_session import KernelSession
 
     global _spare_session
-    session = _spare_session or KernelSession(timeout)
+    session = _spare_session or KernelSession(timeout, sandbox)
     session.timeout = float(timeout)
     if _spare_session is not None:
-        _spare_session = KernelSession(timeout)
+        _spare_session = KernelSession(timeout, sandbox)
     return session
 
 
-def _keep_a_spare_kernel() -> None:
-    """Worker set-up of :func:`grade_many`: import the checks and start a kernel ahead."""
+def _close_spare_session() -> None:
     global _spare_session
-    from multiprocessing.util import Finalize
-
-    from kalman_course.tooling.kernel_session import KernelSession
-
-    _spare_session = KernelSession(120.0)
-    # a worker leaves through os._exit, which skips atexit: multiprocessing's own hook stops the spare
-    Finalize(None, lambda: _spare_session and _spare_session.close(), exitpriority=10)
-    registered_checks()
+    if _spare_session is not None:
+        _spare_session.close()
+        _spare_session = None
 
 
 def registered_checks() -> dict:
@@ -392,7 +386,7 @@ def learner_of(path: Path, root: Path | None = None) -> str:
 
 
 def grade_notebook(path: str | Path, release: dict, *, timeout: float = 120.0,
-                   learner: str = "-", compare: bool = False) -> NotebookResult:
+                   learner: str = "-", compare: bool = False, sandbox=None) -> NotebookResult:
     """Grade one submitted notebook against the released exercises (``release`` by chapter).
 
     ``compare`` also runs each grader cell inside the learner's kernel and records that
@@ -409,13 +403,13 @@ def grade_notebook(path: str | Path, release: dict, *, timeout: float = 120.0,
     except (NotebookError, OSError) as exc:  # corrupt JSON, empty file, not a notebook at all
         result.status, result.detail = NOT_A_NOTEBOOK, f"cannot read it as a notebook: {exc}"
         return result
-    grade_submission(submission, release, result, timeout=timeout, compare=compare)
+    grade_submission(submission, release, result, timeout=timeout, compare=compare, sandbox=sandbox)
     result.seconds = time.perf_counter() - start
     return result
 
 
 def grade_submission(submission, release: dict, result: NotebookResult, *, timeout: float = 120.0,
-                     compare: bool = False) -> NotebookResult:
+                     compare: bool = False, sandbox=None) -> NotebookResult:
     """Grade a notebook already read (``result`` names it and receives the outcome)."""
     result.chapter = chapter_of_notebook(submission, Path(result.path), release)
     if result.chapter not in release:
@@ -423,7 +417,9 @@ def grade_submission(submission, release: dict, result: NotebookResult, *, timeo
         result.detail = f"no released exercise for chapter {result.chapter or '?'}"
         return result
     ref = release[result.chapter]
-    session = _fresh_session(timeout)  # the kernel starts while the notebook is restored and reviewed
+    session = _fresh_session(timeout, sandbox)  # the kernel starts while the notebook is restored and reviewed
+    session.show_notebooks({f"release_{result.chapter}.ipynb": json.dumps(ref),
+                            Path(result.path).name: json.dumps(submission)})
     nb, result.tampered, result.readded = restore_graders(submission, ref)
     try:
         result.flags = review_flags(nb, ref)
@@ -451,30 +447,49 @@ def grade_submission(submission, release: dict, result: NotebookResult, *, timeo
 def _grade_one(item):
     """Grade one (path or (file name, notebook), learner) of a class; never raises (one bad
     notebook must not stop the rest)."""
-    (source, learner), release, timeout, compare = item
+    (source, learner), release, timeout, compare, sandbox = item
     name = source[0] if isinstance(source, tuple) else str(source)
     try:
         if isinstance(source, tuple):
             return grade_submission(source[1], release, NotebookResult(name, learner), timeout=timeout,
-                                    compare=compare)
-        return grade_notebook(source, release, timeout=timeout, learner=learner, compare=compare)
+                                    compare=compare, sandbox=sandbox)
+        return grade_notebook(source, release, timeout=timeout, learner=learner, compare=compare,
+                              sandbox=sandbox)
     except Exception as exc:  # a bug here must not lose the rest of the class
         return NotebookResult(name, learner, status=RUN_ERROR, detail=f"{type(exc).__name__}: {exc}")
 
 
+class GradingInterrupted(Exception):
+    """Ctrl-C stopped a class run; every kernel and worker of it has ended.
+
+    ``results`` holds the notebooks graded before it (None for the others).
+    """
+
+    def __init__(self, results):
+        super().__init__("grading interrupted")
+        self.results = results
+
+
 def grade_many(submissions: list[tuple], release: dict, *, timeout: float = 120.0,
                jobs: int = 1, progress=None, compare: bool = False, order=None,
-               class_size: int | None = None) -> list[NotebookResult]:
+               class_size: int | None = None, sandbox=None) -> list[NotebookResult]:
     """Grade (path, learner) pairs, ``jobs`` at a time, each in its own kernel.
 
     A submission may also be given already read, as ((file name, notebook), learner).
     With ``jobs`` > 1 each job is a worker process that grades one notebook after another
-    (a fresh kernel for each). ``progress(done, total, result)`` is called as each one
-    finishes. One submission's failure never stops the others. ``compare``: see
+    (a fresh kernel for each); a worker that dies costs only the notebook it was grading
+    (status WORKER_DIED) and is replaced. ``progress(done, total, result)`` is called as
+    each one finishes. One submission's failure never stops the others. ``compare``: see
     :func:`grade_notebook`. ``order`` and ``class_size``: the submissions' places in the
-    whole class when they are one shard of it (default: they are the class).
+    whole class when they are one shard of it (default: they are the class). ``sandbox``:
+    a :class:`kalman_course.tooling.sandbox.Sandbox` each kernel starts in (None: none).
+
+    Raises
+    ------
+    GradingInterrupted
+        On Ctrl-C, within about a second, after ending every worker and kernel.
     """
-    items = [(s, release, timeout, compare) for s in submissions]
+    items = [(s, release, timeout, compare, sandbox) for s in submissions]
     results: list[NotebookResult | None] = [None] * len(items)
     positions = list(range(len(items))) if order is None else list(order)
     class_size = len(items) if class_size is None else class_size
@@ -483,21 +498,45 @@ def grade_many(submissions: list[tuple], release: dict, *, timeout: float = 120.
         results[i].order, results[i].class_size = positions[i], class_size
         return results[i]
 
-    if jobs <= 1 or len(items) <= 1:
-        for i, item in enumerate(items):
-            results[i] = _grade_one(item)
-            if progress:
-                progress(i + 1, len(items), place(i))
-        return [place(i) for i in range(len(items))]
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    def finished(i, result, done):
+        results[i] = result
+        if progress:
+            progress(done, len(items), place(i))
 
-    with ProcessPoolExecutor(max_workers=min(jobs, len(items)), initializer=_keep_a_spare_kernel) as pool:
-        futures = {pool.submit(_grade_one, item): i for i, item in enumerate(items)}
-        for done, future in enumerate(as_completed(futures), 1):
-            results[futures[future]] = future.result()
-            if progress:
-                progress(done, len(items), place(futures[future]))
+    try:
+        if jobs <= 1 or len(items) <= 1:
+            try:
+                for i, item in enumerate(items):
+                    finished(i, _grade_one(item), i + 1)
+            finally:
+                _close_spare_session()
+        else:
+            from kalman_course.tooling.workers import WorkerPool
+
+            from kalman_course.tooling.kernel_session import close_every_session
+
+            with WorkerPool(min(jobs, len(items)), _grade_one, lambda: _worker_start(sandbox),
+                            close_every_session) as pool:
+                for done, (i, result) in enumerate(pool.map(items, died=_worker_died), 1):
+                    finished(i, result, done)
+    except KeyboardInterrupt:
+        raise GradingInterrupted([place(i) if r else None for i, r in enumerate(results)]) from None
     return [place(i) for i in range(len(items))]
+
+
+def _worker_start(sandbox) -> None:
+    """Worker set-up of :func:`grade_many`: start a kernel ahead, in the run's sandbox."""
+    global _spare_session
+    from kalman_course.tooling.kernel_session import KernelSession
+
+    registered_checks()
+    _spare_session = KernelSession(120.0, sandbox)
+
+
+def _worker_died(item, why: str) -> NotebookResult:
+    (source, learner) = item[0]
+    name = source[0] if isinstance(source, tuple) else str(source)
+    return NotebookResult(name, learner, status=WORKER_DIED, detail=f"the grading worker died ({why})")
 
 
 def format_summary(results: list[NotebookResult]) -> str:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import queue
+import re
 import shutil
 import signal
 import subprocess
@@ -20,6 +21,7 @@ import time
 import uuid
 from dataclasses import dataclass
 
+import zmq
 from jupyter_client.kernelspec import KernelSpec, KernelSpecManager
 from jupyter_client.manager import KernelManager
 
@@ -40,15 +42,36 @@ TIMED_OUT, KERNEL_DIED = "timed out", "kernel died"
 _AGENT_LISTEN = "__import__('kalman_course.checks.kernel_agent', fromlist=['listen']).listen(get_ipython(), globals())"
 
 
-class _ThisPython(KernelSpecManager):
-    """Kernels run the Python that runs the grader (the environment the course is installed in)."""
+#: The kernel's command: the Python that runs the grader (the environment the course is installed in).
+_KERNEL_ARGV = [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}",
+                "--log-level=ERROR",  # no start-up notices on the grader's stderr
+                "--HistoryManager.enabled=False"]  # no history database shared between learners' kernels
+
+#: The largest message the grading process accepts from a kernel, in bytes: larger ones are
+#: refused by ZeroMQ as they arrive (the peer is cut off), before they take any memory here.
+MAX_MESSAGE = 80 * 2**20
+
+
+class _Spec(KernelSpecManager):
+    """One kernel command (plain, or inside the sandbox) and how to interrupt it."""
+
+    def __init__(self, argv: list[str], interrupt_mode: str):
+        super().__init__()
+        self._argv, self._interrupt_mode = argv, interrupt_mode
 
     def get_kernel_spec(self, kernel_name):
-        return KernelSpec(argv=[sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}",
-                                "--log-level=ERROR",  # no start-up notices on the grader's stderr
-                                # no history database shared between learners' kernels
-                                "--HistoryManager.enabled=False"],
-                          display_name="Python 3", language="python", name=kernel_name)
+        return KernelSpec(argv=self._argv, display_name="Python 3", language="python", name=kernel_name,
+                          interrupt_mode=self._interrupt_mode)
+
+
+#: The sessions of this process whose kernel may still run (see :func:`close_every_session`).
+_LIVE: set = set()
+
+
+def close_every_session() -> None:
+    """End every kernel this process started (a worker told to stop, Ctrl-C)."""
+    for session in list(_LIVE):
+        session.close()
 
 
 @dataclass
@@ -72,25 +95,55 @@ class KernelSession(Session):
         Seconds each cell (and each check, over all its calls) may take.
     """
 
-    def __init__(self, timeout: float):
+    def __init__(self, timeout: float, sandbox=None):
         super().__init__()
         self.timeout = float(timeout)
         self.deadline = None  # set by the grader for the check that is running
         self.timed_out = False
+        self.sandbox = sandbox
         self.folder = tempfile.mkdtemp(prefix="kalman-grade-")
         self._comm_id = None
+        self._cgroup = None
+        channels = os.path.join(self.folder, "channels")
+        self.files = os.path.join(self.folder, "files")  # what the kernel sees of the notebook (read-only)
+        os.mkdir(channels)
+        os.mkdir(self.files)
         env = dict(os.environ)
         env["MPLBACKEND"] = "Agg"  # plots are not graded: draw them nowhere (no PNG rendering)
         env["PYDEVD_DISABLE_FILE_VALIDATION"] = "1"  # no debugger warning on stderr
         env["IPYTHONDIR"] = os.path.join(self.folder, ".ipython")  # a profile of its own: no shared start-up files
-        self.km = KernelManager(kernel_spec_manager=_ThisPython(), kernel_name="python3")
+        argv, interrupt_mode = _KERNEL_ARGV, "signal"
+        if sandbox is not None:
+            argv, self._cgroup = sandbox.kernel_argv(
+                _KERNEL_ARGV, channels=channels, files={"notebooks": self.files},
+                env={"MPLBACKEND": "Agg", "PYDEVD_DISABLE_FILE_VALIDATION": "1"})
+            interrupt_mode = "message"  # a signal would reach bubblewrap, not the kernel inside
+            env = {"PATH": os.environ.get("PATH", "/usr/bin:/bin")}  # bubblewrap sets the kernel's own
+        # ipc: Unix sockets in the kernel's own folder (a TCP port would be the sandbox's own loopback)
+        self.km = KernelManager(kernel_spec_manager=_Spec(argv, interrupt_mode), kernel_name="python3",
+                                transport="ipc", ip=os.path.join(channels, "kernel"))
+        self.km.connection_file = os.path.join(channels, "kernel.json")
         # its own log (a KeyboardInterrupt after a timeout, ...) is not the grader's output
-        self.km.start_kernel(cwd=self.folder, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         self.kc = None
+        _LIVE.add(self)
+        self.km.start_kernel(cwd=self.folder if sandbox is None else None, env=env,
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+    def show_notebooks(self, notebooks: dict[str, str]) -> None:
+        """Put read-only copies of ``notebooks`` (file name → JSON text) where the kernel
+        sees them (``~/notebooks`` in the sandbox, ``files/`` of its folder without one)."""
+        for name, text in notebooks.items():
+            # a learner's file name, made a plain name in this folder
+            path = os.path.join(self.files, re.sub(r"[^\w.-]", "_", os.path.basename(name)).lstrip(".") or "_")
+            with open(path, "w", encoding="utf-8") as fh:
+                fh.write(text)
+            os.chmod(path, 0o444)
 
     def _connect(self) -> None:
         if self.kc is None:
-            self.kc = self.km.client()
+            context = zmq.Context()
+            context.setsockopt(zmq.MAXMSGSIZE, MAX_MESSAGE)  # every socket of this client: bounded
+            self.kc = self.km.client(context=context)
             self.kc.start_channels()
 
     def wait_until_ready(self, timeout: float = 60.0) -> None:
@@ -109,7 +162,10 @@ class KernelSession(Session):
             "comm_open", content={"comm_id": self._comm_id, "target_name": COMM_TARGET, "data": {}}))
 
     def close(self) -> None:
-        """Stop the kernel and remove the request files."""
+        """Stop the kernel and remove the request files (again: nothing)."""
+        if self not in _LIVE:
+            return
+        _LIVE.discard(self)
         if self.kc is not None:
             self.kc.stop_channels()
         process = getattr(getattr(self.km, "provisioner", None), "process", None)
@@ -128,6 +184,10 @@ class KernelSession(Session):
                 self.km.shutdown_kernel(now=True)
         except (OSError, subprocess.TimeoutExpired):  # already gone
             pass
+        if self.kc is not None:
+            self.kc.context.destroy(linger=0)
+        if self._cgroup is not None:
+            self._cgroup.remove()
         shutil.rmtree(self.folder, ignore_errors=True)
 
     # -- cells -------------------------------------------------------------------------
@@ -163,18 +223,25 @@ class KernelSession(Session):
         """
         end = time.monotonic() + timeout
         interrupted = False
+        alive_checked = time.monotonic()
         while True:
+            now = time.monotonic()
+            # the deadline and the kernel's life are looked at however busy the channel is
+            if now > end:
+                if interrupted:
+                    raise KernelLost(TIMED_OUT, f"{what} ran longer than {timeout:g} s and did not stop")
+                self.km.interrupt_kernel()
+                self.timed_out = interrupted = True
+                end = time.monotonic() + INTERRUPT_GRACE
+            if now - alive_checked > POLL:
+                alive_checked = now
+                if not self.km.is_alive():
+                    raise KernelLost(KERNEL_DIED, "the kernel died (os._exit, a crash, or out of memory)")
             try:
-                msg = get_msg(timeout=POLL)
+                msg = get_msg(timeout=min(POLL, max(end - now, 0.01)))
             except queue.Empty:
                 if not self.km.is_alive():
                     raise KernelLost(KERNEL_DIED, "the kernel died (os._exit, a crash, or out of memory)")
-                if time.monotonic() > end:
-                    if interrupted:
-                        raise KernelLost(TIMED_OUT, f"{what} ran longer than {timeout:g} s and did not stop")
-                    self.km.interrupt_kernel()
-                    self.timed_out = interrupted = True
-                    end = time.monotonic() + INTERRUPT_GRACE
                 continue
             outcome = judge(msg, interrupted)
             if outcome is not _PENDING:
@@ -217,7 +284,8 @@ class KernelSession(Session):
             return encode({"raised": Raised("TimeoutError", why)}, towards_kernel=False)
         answer = reply.get("answer") if isinstance(reply, dict) else None
         if not isinstance(answer, str):
-            why = "the notebook did not answer the grader (its kernel's comms were changed?)"
+            why = ("the notebook did not answer the grader (an answer over "
+                   f"{MAX_MESSAGE // 2**20} MiB, or its kernel's comms were changed)")
             return encode({"raised": Raised("RuntimeError", why)}, towards_kernel=False)
         return answer  # Session._ask bounds its size and decodes it
 
