@@ -208,7 +208,11 @@ def test_a_failing_review_never_costs_the_grade(tmp_path, monkeypatch):
 
     passed = {"grader-f_check": grading._GraderVerdict(True)}
     monkeypatch.setattr(grading, "review_flags", broken_review)
-    monkeypatch.setattr(grading, "_fresh_session", lambda timeout: None)
+    class NoKernel:
+        def show_notebooks(self, notebooks):
+            pass
+
+    monkeypatch.setattr(grading, "_fresh_session", lambda timeout, sandbox: NoKernel())
     monkeypatch.setattr(grading, "run_graded", lambda nb, timeout, compare, session: (grading.GRADED, passed, [], ""))
     path = tmp_path / "07_x.ipynb"
     nbformat.write(nbformat.from_dict(_release()), path)

@@ -24,6 +24,9 @@ import numpy as np
 
 from kalman_course.checks import plain_data
 
+#: The largest answer a check accepts, in characters of JSON (a whole ESKF run is ~5 MB).
+MAX_ANSWER = 64 * 2**20
+
 #: Dataclass instances received whole earlier in this kernel, by handle (see plain_data.encode).
 _HANDLES: dict[int, object] = {}
 
@@ -128,10 +131,15 @@ def answer(namespace: dict, request: str, handles: dict | None = None) -> str:
     except Exception as exc:  # a malformed request: only if something replaced the grader's
         reply = {"raised": plain_data.Raised(type(exc).__name__, f"the request could not be read: {exc}")}
     try:
-        return plain_data.encode(reply, towards_kernel=False, convert=to_plain)
+        text = plain_data.encode(reply, towards_kernel=False, convert=to_plain)
     except (plain_data.NotPlainData, RecursionError, ValueError, TypeError):
         result = reply.get("result")
         return plain_data.encode({"result": plain_data.Opaque(type(result).__name__)}, towards_kernel=False)
+    if len(text) > MAX_ANSWER:  # said here, where it is cheap; the grading process refuses more anyway
+        why = (f"your function's result is {len(text) / 2**20:.0f} MiB as data, more than the "
+               f"{MAX_ANSWER // 2**20} MiB a check accepts: does it return what the exercise asks for?")
+        return plain_data.encode({"raised": plain_data.Raised("ValueError", why)}, towards_kernel=False)
+    return text
 
 
 #: The Jupyter comm target on which the grading process sends its requests.

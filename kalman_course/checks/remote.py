@@ -42,8 +42,8 @@ class LearnerRaised(Exception):
 class Session:
     """The link to one learner kernel. Subclasses implement :meth:`exchange`."""
 
-    #: Largest answer accepted from the kernel, in characters (a whole ESKF run is ~5 MB).
-    MAX_ANSWER = 64 * 2**20
+    #: Largest answer accepted from the kernel, in characters.
+    MAX_ANSWER = kernel_agent.MAX_ANSWER
 
     def __init__(self):
         self._memo: dict = {}  # dataclass instances sent whole, by id (see plain_data.encode)

@@ -25,7 +25,7 @@ import zmq
 from jupyter_client.kernelspec import KernelSpec, KernelSpecManager
 from jupyter_client.manager import KernelManager
 
-from kalman_course.checks.kernel_agent import COMM_TARGET
+from kalman_course.checks.kernel_agent import COMM_TARGET, MAX_ANSWER
 from kalman_course.checks.plain_data import Raised, encode
 from kalman_course.checks.remote import KernelLost, Session
 
@@ -48,8 +48,9 @@ _KERNEL_ARGV = [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_f
                 "--HistoryManager.enabled=False"]  # no history database shared between learners' kernels
 
 #: The largest message the grading process accepts from a kernel, in bytes: larger ones are
-#: refused by ZeroMQ as they arrive (the peer is cut off), before they take any memory here.
-MAX_MESSAGE = 80 * 2**20
+#: refused by ZeroMQ as they arrive (the peer is cut off, and the call runs out of time),
+#: before they take any memory here. An honest kernel's agent refuses a larger answer itself.
+MAX_MESSAGE = MAX_ANSWER + 16 * 2**20
 
 
 class _Spec(KernelSpecManager):

@@ -13,6 +13,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import signal
+import time
 from collections import deque
 from multiprocessing.connection import wait
 
@@ -71,7 +72,15 @@ class WorkerPool:
         return self
 
     def __exit__(self, kind, exc, tb):
-        self.close(now=kind is not None)
+        if kind is None:
+            self.close()
+            return False
+        # a second Ctrl-C must not cut the ending of the kernels short
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            self.close(now=True)
+        finally:
+            signal.signal(signal.SIGINT, previous)
         return False
 
     def map(self, items: list, died):
@@ -124,8 +133,9 @@ class WorkerPool:
                     worker.conn.send(None)
             except (OSError, ValueError):  # already gone
                 pass
+        deadline = time.monotonic() + STOP_GRACE
         for worker in self._workers:
-            worker.process.join(STOP_GRACE if now else None)
+            worker.process.join(max(deadline - time.monotonic(), 0) if now else None)
             if worker.process.is_alive():
                 worker.process.kill()
                 worker.process.join()
