@@ -109,9 +109,7 @@ def _python_roots() -> list[str]:
 def _package_dir() -> str:
     """The ``kalman_course`` package folder alone (in an editable install its checkout holds
     ``solutions/``, which must stay out)."""
-    import kalman_course
-
-    return os.path.realpath(os.path.dirname(kalman_course.__file__))
+    return os.path.realpath(Path(__file__).parents[1])
 
 
 #: System files a Python kernel reads, bound read-only when present (the rest of /etc stays out).

@@ -33,6 +33,9 @@ import tempfile
 import time
 from pathlib import Path
 
+#: The ``kalman_course`` package folder.
+PACKAGE = Path(__file__).resolve().parents[1]
+
 #: Modules of the course that grading never runs (and that import what grading does not need).
 _NOT_FOR_GRADING = ("kalman_course.data.build", "kalman_course.tooling.bench", "kalman_course.tooling.export")
 
@@ -44,10 +47,8 @@ _LAZY = ("csv", "hmac", "concurrent.futures", "multiprocessing.connection", "mul
 
 def preload() -> list[str]:
     """Import every module grading can need; return their names (for the tests)."""
-    import kalman_course
-
     names = []
-    for info in pkgutil.walk_packages(kalman_course.__path__, "kalman_course."):
+    for info in pkgutil.walk_packages([str(PACKAGE)], "kalman_course."):
         if not info.name.startswith(_NOT_FOR_GRADING):
             importlib.import_module(info.name)
             names.append(info.name)
@@ -85,10 +86,7 @@ def _digest(path: str) -> str:
 
 def _watched_files() -> list[str]:
     """The package's files (``.pyc`` included) and the start-up files of every site folder."""
-    import kalman_course
-
-    package = os.path.dirname(kalman_course.__file__)
-    files = [str(p) for p in Path(package).rglob("*") if p.is_file()]
+    files = [str(p) for p in PACKAGE.rglob("*") if p.is_file()]
     folders = [*site.getsitepackages(), site.getusersitepackages()]
     for folder in folders:
         files += glob.glob(os.path.join(folder, "*.pth"))
