@@ -2,12 +2,14 @@
 
 The same class is graded three ways: one `kalman-course grade` run; the GitHub Actions
 workflow in `recipes/`, dry-run here (every `run:` step executed as the runner would, the
-artifact steps emulated by copying files, the install steps skipped); and the Slurm
-recipe, run with a stand-in `sbatch` that executes array tasks one after the other and
-then the dependent merge. The gradebooks (CSV, JSON) and feedback files must be
-byte-for-byte those of the single run.
+artifact steps emulated by copying files, the install steps skipped, the repository secret
+given as the workflow maps it); and the Slurm recipe, run with a stand-in `sbatch` that
+executes array tasks one after the other and then the dependent merge, with the key in a
+file only its owner can read. Every shard is signed and the merge verifies them; the
+gradebooks (CSV, JSON) and feedback files must be byte-for-byte those of the single run.
 """
 
+import json
 import os
 import re
 import shutil
@@ -19,13 +21,14 @@ from pathlib import Path
 import pytest
 import yaml
 
-from kalman_course.tooling import cli, grading
+from kalman_course.tooling import cli, gradebook, grading
 
 from conftest import ROOT
 
 pytestmark = pytest.mark.slow
 
 RECIPES = ROOT / "recipes"
+KEY = "the instructor's key for this test"
 
 
 def _class(folder: Path) -> Path:
@@ -50,10 +53,17 @@ def graded(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("shards")
     submissions = _class(tmp / "class")
     one = tmp / "one"
-    code = cli.main(["grade", str(submissions), "--release", str(ROOT / "exercises"), "--jobs", "2",
-                     "--csv", str(one / "grades.csv"), "--json", str(one / "grades.json"),
-                     "--feedback", str(one / "feedback")])
+    with pytest.MonkeyPatch.context() as patch:  # the single run signs with the instructor's key
+        patch.setenv(gradebook.KEY_VARIABLE, KEY)
+        code = cli.main(["grade", str(submissions), "--release", str(ROOT / "exercises"), "--jobs", "2",
+                         "--csv", str(one / "grades.csv"), "--json", str(one / "grades.json"),
+                         "--feedback", str(one / "feedback")])
     return tmp, submissions, code, _outputs(one)
+
+
+def _without_key() -> dict:
+    """The test's environment with no gradebook key in it: each recipe must pass its own."""
+    return {k: v for k, v in os.environ.items() if k != gradebook.KEY_VARIABLE}
 
 
 def _run(script: str, cwd: Path, env: dict) -> None:
@@ -70,9 +80,12 @@ def _expand(text: str, values: dict) -> str:
     return re.sub(r"\$\{\{(.*?)\}\}", value, text)
 
 
-def test_one_run_reports_the_broken_notebook(graded):
+def test_one_run_reports_the_broken_notebook_and_signs_its_gradebook(graded):
     _, _, code, outputs = graded
     assert code == 1 and "grades.json" in outputs and len([k for k in outputs if "feedback" in k]) == 3
+    document = json.loads(outputs["grades.json"])
+    assert document["signature"] == gradebook.signature(document, KEY.encode())
+    assert [learner for learner, _ in document["run"]["class"]] == ["alice", "alice", "bob", "dave"]
 
 
 def test_github_actions_matrix_and_merge_give_the_single_runs_gradebook(graded):
@@ -80,13 +93,14 @@ def test_github_actions_matrix_and_merge_give_the_single_runs_gradebook(graded):
     workflow = yaml.safe_load((RECIPES / "grade-class-github.yml").read_text())
     trigger = workflow.get("on", workflow.get(True))  # YAML 1.1 reads the key `on` as True
     inputs = {f"inputs.{k}": v["default"] for k, v in trigger["workflow_dispatch"]["inputs"].items()}
-    inputs.update({"inputs.submissions": str(submissions), "inputs.release": str(ROOT / "exercises")})
+    inputs.update({"inputs.submissions": str(submissions), "inputs.release": str(ROOT / "exercises"),
+                   f"secrets.{gradebook.KEY_VARIABLE}": KEY})
     grade, merge = workflow["jobs"]["grade"], workflow["jobs"]["merge"]
     assert merge["needs"] == "grade" and grade["strategy"]["fail-fast"] is False
     shards = grade["strategy"]["matrix"]["shard"]
     assert shards == list(range(1, int(grade["env"]["SHARDS"]) + 1))
     artifacts = tmp / "artifacts"
-    env = dict(os.environ, **{k: str(v) for k, v in grade["env"].items()})
+    env = dict(_without_key(), **{k: _expand(str(v), inputs) for k, v in grade["env"].items()})
     for shard in shards:
         workspace = tmp / f"runner-{shard}"
         workspace.mkdir()
@@ -109,7 +123,8 @@ def test_github_actions_matrix_and_merge_give_the_single_runs_gradebook(graded):
                 for file in folder.iterdir():
                     shutil.copy(file, path / file.name)
         elif "run" in step and not step["run"].startswith("pip install"):
-            _run(_expand(step["run"], inputs), workspace, dict(os.environ))
+            _run(_expand(step["run"], inputs), workspace,
+                 dict(_without_key(), **{k: _expand(str(v), inputs) for k, v in merge.get("env", {}).items()}))
     assert _outputs(workspace) == expected
 
 
@@ -142,24 +157,35 @@ def test_slurm_array_and_dependent_merge_give_the_single_runs_gradebook(graded, 
     sbatch.write_text(SBATCH.replace("python3", Path(sys.executable).name, 1)
                       .replace("#!/usr/bin/env " + Path(sys.executable).name, "#!" + sys.executable, 1))
     sbatch.chmod(sbatch.stat().st_mode | stat.S_IEXEC)
-    env = dict(os.environ, PATH=f"{bin_dir}{os.pathsep}{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
+    env = dict(_without_key(),
+               PATH=f"{bin_dir}{os.pathsep}{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
+    key_file = tmp_path / "gradebook.key"
+    key_file.write_text(KEY + "\n")
+    key_file.chmod(0o600)
     out = tmp_path / "out"
-    _run(f"bash {RECIPES / 'grade-class-slurm.sh'} {submissions} {ROOT / 'exercises'} {out} 3", tmp_path, env)
+    _run(f"bash {RECIPES / 'grade-class-slurm.sh'} {submissions} {ROOT / 'exercises'} {out} 3 {key_file}",
+         tmp_path, env)
     assert sorted(p.name for p in (out / "shards").iterdir()) == ["shard-1.json", "shard-2.json", "shard-3.json"]
     assert _outputs(out) == expected
 
 
-def test_merge_refuses_a_missing_or_repeated_shard(graded, tmp_path):
-    tmp = graded[0]
-    whole = grading.read_json(tmp / "one" / "grades.json")
-    first, rest = tmp_path / "first.json", tmp_path / "rest.json"
-    grading.write_json(whole[:1], first)
-    grading.write_json(whole[2:], rest)          # the second notebook is in no gradebook
-    with pytest.raises(ValueError, match=r"notebooks \[1\] are missing"):
-        grading.merge_results([grading.read_json(p) for p in (first, rest)])
-    with pytest.raises(ValueError, match=r"notebooks \[0\] are in two gradebooks"):
-        grading.merge_results([grading.read_json(p) for p in (first, first, rest)])
-    assert cli.main(["merge", str(first), str(rest)]) == 2
+def test_merge_refuses_a_missing_or_repeated_shard(graded, tmp_path, monkeypatch, capsys):
+    tmp, submissions, _, _ = graded
+    monkeypatch.setenv(gradebook.KEY_VARIABLE, KEY)
+    whole = gradebook.read_json(tmp / "one" / "grades.json")
+    roster = [tuple(entry) for entry in whole.run["class"]]
+    everyone = [(path, learner) for learner, path in roster]
+    shards = []
+    for k in (1, 2):
+        shards.append(tmp_path / f"shard-{k}.json")
+        gradebook.write_gradebooks([whole.results[i] for i in grading.shard_of(everyone, k, 2)],
+                                   dict(whole.run, shard=f"{k}/2"), KEY.encode(), json_path=shards[-1])
+    assert cli.main(["merge", *map(str, shards)]) == 1  # both shards verify; dave's file is no notebook
+    capsys.readouterr()
+    assert cli.main(["merge", str(shards[0])]) == 2
+    assert "shard 2/2 is missing" in capsys.readouterr().err
+    assert cli.main(["merge", str(shards[0]), str(shards[0]), str(shards[1])]) == 2
+    assert "all say they are shard 1/2" in capsys.readouterr().err
     (tmp_path / "not.json").write_text("[1, 2]")
     with pytest.raises(ValueError, match="not a gradebook written by"):
-        grading.read_json(tmp_path / "not.json")
+        gradebook.read_json(tmp_path / "not.json")

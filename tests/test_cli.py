@@ -5,7 +5,7 @@ import sys
 
 import pytest
 
-from kalman_course.tooling import cli, grading
+from kalman_course.tooling import cli, gradebook, grading
 
 SUBCOMMANDS = [[], ["execute"], ["build"], ["grade"], ["merge"], ["export"], ["bench"], ["data"], ["data", "build"]]
 
@@ -54,7 +54,7 @@ def test_every_hint_can_be_listed_under_the_table():
               grading.CheckResult("kf_gain", "g2", 2, 2),
               grading.CheckResult("kf_update", "g3", 0, 3, "CheckFailed: kf_update: x is wrong")]
     result = grading.NotebookResult("a/03_kalman_filter.ipynb", "alice", "03", checks=checks)
-    short, full = grading.format_table([result]), grading.format_table([result], every_hint=True)
+    short, full = gradebook.format_table([result]), gradebook.format_table([result], every_hint=True)
     assert "kf_update: x is wrong" not in short
     assert full.endswith("03_kalman_filter.ipynb (alice):\n  kf_predict: P is wrong. Hint: add Q\n"
                          "  kf_update: x is wrong")

@@ -121,7 +121,7 @@ def test_grade_restores_a_tampered_grader_and_never_writes_the_submission(tmp_pa
     code = cli.main(["grade", str(sub_dir / name), str(tmp_path / name),
                      "--release", str(ROOT / "exercises"), "--json", str(tmp_path / "g.json")])
     assert code == 0
-    tampered_result, untouched_result = json.loads((tmp_path / "g.json").read_text())
+    tampered_result, untouched_result = json.loads((tmp_path / "g.json").read_text())["results"]
     assert tampered_result["tampered"] == [f"cell {cid}: source edited"]
     assert tampered_result["checks"] == untouched_result["checks"]
     assert tampered_result["points"] == 0 and tampered_result["possible"] > 0

@@ -5,7 +5,7 @@ import copy
 import pytest
 from nbformat.v4 import new_code_cell, new_markdown_cell, new_notebook
 
-from kalman_course.tooling import grading
+from kalman_course.tooling import gradebook, grading
 
 
 def _release():
@@ -149,15 +149,24 @@ def test_a_missing_file_is_named_as_missing(tmp_path):
     assert (result.status, result.detail) == (grading.NOT_A_NOTEBOOK, f"no such file: {tmp_path / '07_gone.ipynb'}")
 
 
+def _write(results, **outputs):
+    """Write the gradebooks of ``results`` as one unsigned run of exactly them."""
+    run = gradebook.run_record([(r.learner, r.path) for r in results], sandbox="none")
+    return gradebook.write_gradebooks(results, run, **outputs)
+
+
+def _feedback(folder):
+    return {p.stem: p.read_text() for p in folder.iterdir()}
+
+
 def test_table_and_gradebooks(tmp_path):
     ok = grading.NotebookResult("a/01_x.ipynb", "01", checks=[grading.CheckResult("f", "grader-f", 2, 2)])
     bad = grading.NotebookResult("b/01_x.ipynb", "01", tampered=["grader-f"],
                                  checks=[grading.CheckResult("f", "grader-f", 0, 2, "CheckFailed: f: wrong")])
-    table = grading.format_table([ok, bad])
+    table = gradebook.format_table([ok, bad])
     assert "2/2" in table and "0/2" in table and "  f: wrong" in table
     assert "total 2/4 points" in table and "edited: grader-f" in table
-    grading.write_csv([ok, bad], tmp_path / "g.csv")
-    grading.write_json([ok, bad], tmp_path / "g.json")
+    _write([ok, bad], csv_path=tmp_path / "g.csv", json_path=tmp_path / "g.json")
     assert "f=0/2" in (tmp_path / "g.csv").read_text()
     assert '"points": 2' in (tmp_path / "g.json").read_text()
 
@@ -172,17 +181,16 @@ def test_a_challenge_is_counted_apart_from_the_core(tmp_path):
     assert (done.points, done.possible, done.challenge_points, done.challenge_possible) == (2, 5, 4, 4)
     assert (undone.points_text, undone.hint) == ("5/5 +0/4", "")  # an undone challenge is no problem
     assert done.hint == "g: wrong"
-    table = grading.format_table([done, undone])
+    table = gradebook.format_table([done, undone])
     assert "2/5 +4/4" in table and "total 7/10 points" in table and "counted apart" in table
-    assert "optional challenge done by 1 of 2" in grading.format_summary([done, undone])
-    grading.write_csv([done, undone], tmp_path / "g.csv")
+    assert "optional challenge done by 1 of 2" in gradebook.format_summary([done, undone])
+    _write([done, undone], csv_path=tmp_path / "g.csv", json_path=tmp_path / "g.json", feedback_dir=tmp_path / "fb")
     header, first = (tmp_path / "g.csv").read_text().splitlines()[:2]
     assert "challenge_points,challenge_possible" in header and ",2,5,4,4," in first
-    grading.write_json([done, undone], tmp_path / "g.json")
-    again = grading.read_json(tmp_path / "g.json")
+    again = gradebook.read_json(tmp_path / "g.json").results
     assert [(r.points_text, [c.challenge for c in r.checks]) for r in again] == [
         ("2/5 +4/4", [False, False, True]), ("5/5 +0/4", [False, False, True])]
-    feedback = {p.stem: p.read_text() for p in grading.write_feedback([done, undone], tmp_path / "fb")}
+    feedback = _feedback(tmp_path / "fb")
     assert "**h** (optional challenge 0/4): not done" in feedback["bob"]
     assert "Optional challenge: 4/4 points" in feedback["alice"]
 
@@ -191,12 +199,12 @@ def test_review_flags_reach_table_summary_and_gradebook(tmp_path):
     flagged = grading.NotebookResult("a/01_x.ipynb", "alice", "01", flags=["cell c: imports `f` from `m`"],
                                      checks=[grading.CheckResult("f", "grader-f", 2, 2)])
     clean = grading.NotebookResult("b/01_x.ipynb", "bob", "01", checks=[grading.CheckResult("f", "grader-f", 2, 2)])
-    assert "review: 01_x.ipynb: cell c: imports `f` from `m`" in grading.format_table([flagged, clean])
-    assert "flagged for review: 1" in grading.format_summary([flagged, clean])
-    assert "flagged" not in grading.format_summary([clean])
-    grading.write_csv([flagged, clean], tmp_path / "g.csv")
+    assert "review: 01_x.ipynb: cell c: imports `f` from `m`" in gradebook.format_table([flagged, clean])
+    assert "flagged for review: 1" in gradebook.format_summary([flagged, clean])
+    assert "flagged" not in gradebook.format_summary([clean])
+    _write([flagged, clean], csv_path=tmp_path / "g.csv", feedback_dir=tmp_path / "fb")
     assert "cell c: imports `f` from `m`" in (tmp_path / "g.csv").read_text()
-    feedback = {p.stem: p.read_text() for p in grading.write_feedback([flagged, clean], tmp_path / "fb")}
+    feedback = _feedback(tmp_path / "fb")
     assert "Flagged for review" in feedback["alice"] and "Flagged" not in feedback["bob"]
 
 

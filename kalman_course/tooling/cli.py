@@ -73,7 +73,7 @@ def _cmd_build(args: argparse.Namespace) -> int:
 
 
 def _cmd_grade(args: argparse.Namespace) -> int:
-    from kalman_course.tooling import grading
+    from kalman_course.tooling import gradebook, grading
 
     submissions = []
     for item in args.paths:
@@ -83,6 +83,8 @@ def _cmd_grade(args: argparse.Namespace) -> int:
     if not submissions:
         print(f"error: no notebooks found in {' '.join(args.paths)}", file=sys.stderr)
         return 2
+    if _refused(submissions, args):
+        return 2
     try:
         release = grading.load_release(args.release)
     except FileNotFoundError as exc:
@@ -90,9 +92,7 @@ def _cmd_grade(args: argparse.Namespace) -> int:
         return 2
 
     def progress(done, total, r):
-        who = f"{r.learner}: " if r.learner != "-" else ""
-        print(f"[{done}/{total}] {who}{r.path}: {r.status}, {r.points_text} points "
-              f"({r.seconds:.1f} s)", flush=True)
+        print(gradebook.progress_line(done, total, r), flush=True)
 
     class_size = len(submissions)
     positions = list(range(class_size))
@@ -151,34 +151,67 @@ def _open_sandbox(args: argparse.Namespace, grading_a_class: bool):
         return None
 
 
-def _report(results, args) -> int:
-    """Print the table and summary, write the gradebooks asked for; the exit status."""
-    from kalman_course.tooling import grading
+def _refused(submissions, args) -> bool:
+    """Whether grading must not start (said on stderr): learners the gradebooks could not tell
+    apart, a gradebook that would overwrite a submission or land in the release folder, a key
+    file that cannot be used. Otherwise keep the class roster and the key for :func:`_report`."""
+    from kalman_course.tooling import gradebook
+
+    roots = [Path(item) for item in args.paths if Path(item).is_dir()]
+    try:
+        gradebook.refuse_clashing_learners(submissions, roots)
+        gradebook.refuse_unsafe_outputs(args.csv, args.json, args.feedback,
+                                        learners=[learner for _, learner in submissions],
+                                        protected=[path for path, _ in submissions], release=args.release)
+        args.gradebook_key = gradebook.load_key(args.key_file)
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return True
+    args.roster = [(learner, str(path)) for path, learner in submissions]  # the whole class, before any shard
+    return False
+
+
+def _report(results, args, run=None, key=None) -> int:
+    """Print the table and summary, write the gradebooks asked for; the exit status.
+
+    ``run`` and ``key``: the run record and signing key of merged shards; a grading run's are
+    made here from what :func:`_refused` kept and the sandbox ``_cmd_grade`` describes.
+    """
+    from kalman_course.tooling import gradebook, grading
 
     print()
-    print(grading.format_table(results, every_hint=args.all_hints))
-    print(grading.format_summary(results))
-    if args.csv:
-        grading.write_csv(results, args.csv)
-        print(f"wrote {args.csv}")
-    if args.json:
-        grading.write_json(results, args.json)
-        print(f"wrote {args.json}")
-    if args.feedback:
-        written = grading.write_feedback(results, args.feedback)
-        print(f"wrote {len(written)} feedback file(s) to {args.feedback}")
+    print(gradebook.format_table(results, every_hint=args.all_hints))
+    print(gradebook.format_summary(results))
+    if run is None:
+        roster = getattr(args, "roster", None) or [(r.learner, r.path) for r in results]
+        run = gradebook.run_record(roster, sandbox=getattr(args, "sandbox_text", None) or "none",
+                                   shard=args.shard, interrupted=getattr(args, "interrupted", False))
+        key = args.gradebook_key if hasattr(args, "gradebook_key") else gradebook.load_key(args.key_file)
+    for line in gradebook.write_gradebooks(results, run, key, csv_path=args.csv, json_path=args.json,
+                                           feedback_dir=args.feedback):
+        print(line)
+    if args.json and key is None:
+        print(f"note: {args.json} is unsigned: merge refuses it without --unsigned (set "
+              f"{gradebook.KEY_VARIABLE} or pass --key-file to sign it)", file=sys.stderr)
     return 0 if all(r.status in grading.RAN_TO_THE_END for r in results) else 1
 
 
 def _cmd_merge(args: argparse.Namespace) -> int:
-    from kalman_course.tooling import grading
+    from kalman_course.tooling import gradebook
 
     try:
-        results = grading.merge_results([grading.read_json(path) for path in args.gradebooks])
+        key = gradebook.load_key(args.key_file)
+        merged = gradebook.merge_results([gradebook.read_json(path) for path in args.gradebooks], key,
+                                         unsigned=args.unsigned)
+        gradebook.refuse_clashing_learners([(path, learner) for learner, path in merged.run["class"]])
+        gradebook.refuse_unsafe_outputs(args.csv, args.json, args.feedback,
+                                        learners=[r.learner for r in merged.results], protected=args.gradebooks)
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    return _report(results, args)
+    for notice in merged.notices:
+        print(f"note: {notice}", file=sys.stderr)
+    return _report(merged.results, args, merged.run, merged.key)
 
 
 def _shard(text: str) -> tuple[int, int]:
@@ -196,6 +229,9 @@ def _add_gradebook_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--csv", help="also write the gradebook as CSV to this file")
     p.add_argument("--json", help="also write the full results as JSON to this file")
     p.add_argument("--feedback", help="write one Markdown feedback file per learner into this folder")
+    p.add_argument("--key-file", metavar="PATH",
+                   help="the key that signs (grade) or verifies (merge) JSON gradebooks, in a file only you can "
+                        "read (default: the environment variable KALMAN_COURSE_GRADEBOOK_KEY)")
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
@@ -303,6 +339,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("merge", help="combine the JSON gradebooks of a class's shards into one")
     p.add_argument("gradebooks", nargs="+", help="the shards' --json files")
     _add_gradebook_options(p)
+    p.add_argument("--unsigned", action="store_true",
+                   help="merge shards whose signature cannot be checked (each said on stderr); "
+                        "the class's gradebook is then unsigned")
     p.add_argument("--all-hints", action="store_true", help="list every failed check with its hint")
     p.set_defaults(func=_cmd_merge)
 

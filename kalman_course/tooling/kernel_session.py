@@ -110,6 +110,7 @@ class KernelSession(Session):
         os.mkdir(channels)
         os.mkdir(self.files)
         env = dict(os.environ)
+        env.pop("KALMAN_COURSE_GRADEBOOK_KEY", None)  # the instructor's signing key is not the learner's
         env["MPLBACKEND"] = "Agg"  # plots are not graded: draw them nowhere (no PNG rendering)
         env["PYDEVD_DISABLE_FILE_VALIDATION"] = "1"  # no debugger warning on stderr
         env["IPYTHONDIR"] = os.path.join(self.folder, ".ipython")  # a profile of its own: no shared start-up files
