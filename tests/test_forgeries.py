@@ -13,7 +13,8 @@ interfere), which keeps the class small enough to grade in about a minute.
 
 Edits of the notebook JSON alone (grader metadata, tags, stored outputs, a fake grader
 cell, the notebook metadata) must change no points and be listed in ``tampered``. Honest
-notebooks written in unusual but legitimate ways must earn every point with no flag and
+notebooks written in unusual but legitimate ways, and saved by editors other than
+JupyterLab (without cell ids, as Colab saves them), must earn every point with no flag and
 no tampering reported.
 
 The whole corpus is graded by one ``kalman-course grade`` run with two jobs.
@@ -22,6 +23,7 @@ The whole corpus is graded by one ``kalman-course grade`` run with two jobs.
 from __future__ import annotations
 
 import copy
+import functools
 import json
 import textwrap
 from dataclasses import dataclass
@@ -34,6 +36,7 @@ from nbformat.v4 import new_code_cell, new_output
 from kalman_course.tooling import authoring, cli
 
 from conftest import ROOT
+from notebook_editors import classic, colab_no_tags
 
 pytestmark = pytest.mark.slow
 
@@ -71,7 +74,9 @@ class Forgery:
     forges : tuple of str
         The checks it forges. Against the in-kernel grader (``kalman-course grade`` of
         commit 9a83326) each earned exactly these checks' points, except
-        ``excepthook_atexit``, which IPython never calls (kept: learners try it).
+        ``excepthook_atexit``, which IPython never calls (kept: learners try it), and
+        ``grader_id_reused``, which earned its points unflagged and unreported from the
+        grader that issue 23 measured (its restore took the last cell of an id as the grader).
     """
 
     tries: str
@@ -460,6 +465,12 @@ FORGERIES = {
             sys.excepthook = lambda *exc: print(f"{str(exc[1]).split(':', 1)[0]}: passed")
             atexit.register(lambda: print("\\n".join(f"{n}: passed" for n in _names)))
         '''), ("door_likelihood", "histogram_update", "histogram_predict", "histogram_filter")),
+    "grader_id_reused": Forgery(
+        "a cell that imports the reference, under the id of the grader that checks it, just before it",
+        "f01_excepthook_atexit", CH01, "grader-corridor_motion_model", "before:grader-corridor_motion_model",
+        _code('''
+            from kalman_course.filters.bayes import circular_motion_model
+        '''), ("corridor_motion_model",)),
     "results_file": Forgery(
         "write the grader's per-cell results file with every cell passed, then kill the nbval process",
         "f01_results_file", CH01, "forge-results", "after:setup", _code('''
@@ -647,6 +658,15 @@ CONTROLS: dict[str, tuple[str, Callable]] = {
     "control_01": (CH01, _control_01),
 }
 
+#: Controls saved by another editor (``notebook_editors.py``): name -> (the control, how it is saved).
+SAVED_BY: dict[str, tuple[str, Callable[[dict], str]]] = {
+    "control_03_classic_4_4": ("control_03", classic(4)),  # nbformat 4.4, no cell ids
+    "control_09_colab": ("control_09", colab_no_tags),  # Colab's own ids in metadata.id, no tags
+}
+
+#: Forgeries whose cell reuses the id of another cell of their submission.
+REUSED_IDS = {"grader_id_reused"}
+
 
 # ---------------------------------------------------------------------------------------
 # building and grading the class
@@ -682,8 +702,9 @@ def _apply(nb, forgery: Forgery):
     nb.cells.insert(i + (where == "after"), cell)
 
 
+@functools.cache
 def _submissions() -> dict[str, tuple[str, object]]:
-    """Learner folder -> (notebook file name, notebook)."""
+    """Learner folder -> (notebook file name, notebook, or the text another editor saved)."""
     out = {}
     for forgery in FORGERIES.values():
         _, nb = out.setdefault(forgery.submission, (forgery.notebook, _exercise(forgery.notebook)))
@@ -696,6 +717,11 @@ def _submissions() -> dict[str, tuple[str, object]]:
         nb = _solved(notebook)
         edit(nb)
         out[name] = (notebook, nb)
+    for name, (control, save) in SAVED_BY.items():
+        notebook, edit = CONTROLS[control]
+        nb = _solved(notebook)
+        edit(nb)
+        out[name] = (notebook, save(json.loads(nbformat.writes(nb))))
     return out
 
 
@@ -714,10 +740,18 @@ def grade_class(root, out):
     """Write every submission under ``root`` and grade them with one CLI run; learner -> result."""
     for learner, (notebook, nb) in _submissions().items():
         (root / learner).mkdir()
-        nbformat.write(nb, root / learner / notebook)
+        if isinstance(nb, str):  # as another editor saved it, byte for byte
+            (root / learner / notebook).write_text(nb, encoding="utf-8")
+        elif learner in {FORGERIES[name].submission for name in REUSED_IDS}:
+            # as it is: nbformat's writer would give the reused id a new one
+            (root / learner / notebook).write_text(json.dumps(nb, indent=1), encoding="utf-8")
+        else:
+            nbformat.write(nb, root / learner / notebook)
     cli.main(["grade", str(root), "--release", str(ROOT / "exercises"), "--jobs", "2", "--timeout", "60",
               "--json", str(out / "g.json")])
-    return {r["learner"]: r for r in json.loads((out / "g.json").read_text())}
+    document = json.loads((out / "g.json").read_text())
+    records = document["results"] if isinstance(document, dict) else document  # a signed gradebook, or a list
+    return {r["learner"]: r for r in records}
 
 
 @pytest.fixture(scope="module")
@@ -725,9 +759,22 @@ def graded(tmp_path_factory):
     return grade_class(tmp_path_factory.mktemp("class"), tmp_path_factory.mktemp("out"))
 
 
-def _names_cell(flag: str, cell_id: str) -> bool:
-    """True if the review flag is about that cell (flags read ``cell <id>: <what it does>``)."""
-    return flag.startswith(f"cell {cell_id}:")
+def _name(forgery: Forgery) -> str:
+    """How grading names the forging cell: ``cell <id>``, or by its place when another cell
+    of the notebook carries the same id."""
+    cells = _submissions()[forgery.submission][1].cells
+    ids = [c.get("id") for c in cells]
+    place = next(i for i, c in enumerate(cells) if c.source == forgery.source)
+    others = [str(i + 1) for i, cid in enumerate(ids) if cid == forgery.cell and i != place]
+    if not others:
+        return f"cell {forgery.cell}"
+    cells_word = "cells" if len(others) > 1 else "cell"
+    return f"cell {place + 1} (id {forgery.cell}, also used by {cells_word} {', '.join(others)})"
+
+
+def _names_cell(flag: str, name: str) -> bool:
+    """True if the review flag is about the cell named ``name`` (flags read ``<name>: <what it does>``)."""
+    return flag.startswith(f"{name}:")
 
 
 def _by_check(result) -> dict[str, int]:
@@ -739,14 +786,18 @@ def _by_check(result) -> dict[str, int]:
 # ---------------------------------------------------------------------------------------
 
 def test_the_corpus_is_well_formed():
-    """Every forged check belongs to the notebook's chapter; every submission's cell ids are unique."""
+    """Every forged check belongs to the notebook's chapter; every submission's cell ids are
+    unique, but the one a forgery reuses on purpose."""
     assert len(FORGERIES) >= 20
     for name, forgery in FORGERIES.items():
         assert set(forgery.forges) <= set(_release_points(forgery.notebook)), name
-        assert forgery.place == "replace" or not forgery.cell.startswith("grader-"), name
+        assert forgery.place == "replace" or not forgery.cell.startswith("grader-") or name in REUSED_IDS, name
     for learner, (_, nb) in _submissions().items():
+        if isinstance(nb, str):
+            continue  # saved by another editor: without ids
         ids = [c["id"] for c in nb.cells]
-        assert len(ids) == len(set(ids)), learner
+        twice = {cid for cid in ids if ids.count(cid) > 1}
+        assert twice == {FORGERIES[n].cell for n in REUSED_IDS if FORGERIES[n].submission == learner}, learner
     # two techniques in one submission never forge the same check (each point has one culprit)
     forged = [(f.submission, check) for f in FORGERIES.values() for check in f.forges]
     assert len(forged) == len(set(forged))
@@ -761,10 +812,26 @@ def test_a_forgery_earns_no_unflagged_points(graded, name):
     forgery = FORGERIES[name]
     result = graded[forgery.submission]
     points = _by_check(result)
-    flagged = any(_names_cell(flag, forgery.cell) for flag in result["flags"])
+    flagged = any(_names_cell(flag, _name(forgery)) for flag in result["flags"])
     unflagged_points = {check: points.get(check) for check in forgery.forges if points.get(check) and not flagged}
-    assert not unflagged_points, (f"{forgery.tries}: points {unflagged_points} without a flag naming cell "
-                                  f"{forgery.cell!r}; flags {result['flags']}")
+    assert not unflagged_points, (f"{forgery.tries}: points {unflagged_points} without a flag naming "
+                                  f"{_name(forgery)!r}; flags {result['flags']}")
+
+
+def test_a_cell_under_a_grader_s_id_is_reviewed_and_reported_by_its_place(graded):
+    """The reused id is a tamper line, the cell's import a flag, both naming the cell by its
+    place; the real grader cell still grades (and names no flag)."""
+    forgery = FORGERIES["grader_id_reused"]
+    result = graded[forgery.submission]
+    name = _name(forgery)
+    assert name.startswith("cell ") and "(id grader-corridor_motion_model, also used by cell " in name
+    assert result["status"] == "tampered and restored"
+    assert result["tampered"] == [f"{name}: a learner cell carried the id of grader cell {forgery.cell} "
+                                  "(it ran and was reviewed as a learner cell)"]
+    assert result["readded"] == []
+    assert f"{name}: imports `circular_motion_model` from `kalman_course.filters.bayes` instead of writing it" \
+        in result["flags"]
+    assert not any(flag.startswith(f"cell {forgery.cell}:") for flag in result["flags"])
 
 
 @pytest.mark.parametrize("name", sorted(JSON_EDITS))
@@ -777,10 +844,11 @@ def test_an_edit_of_the_json_is_reported_and_changes_no_points(graded, name):
     assert result["possible"] == _core(CH03, release)
 
 
-@pytest.mark.parametrize("name", sorted(CONTROLS))
+@pytest.mark.parametrize("name", sorted(CONTROLS) + sorted(SAVED_BY))
 def test_an_honest_notebook_earns_every_point_unflagged(graded, name):
     result = graded[name]
-    notebook, edit = CONTROLS[name]
+    notebook, edit = CONTROLS[SAVED_BY[name][0] if name in SAVED_BY else name]
+    assert result["status"] == "graded", (result["tampered"], result["readded"])
     release = _release_points(notebook)
     full, challenges = _core(notebook, release), sum(release.values()) - _core(notebook, release)
     assert (result["points"], result["possible"]) == (full, full), [c["message"] for c in result["checks"]]

@@ -1,7 +1,8 @@
 """A class of hostile submissions, graded in one run: each gets the status and points it deserves.
 
 Every case starts from a correct chapter-01 notebook (the released exercise with the
-solution's code) and breaks it in one way. The whole class is graded by the command line
+solution's code) and breaks it in one way, or saves it as another editor does (those must
+be graded as if JupyterLab had saved them). The whole class is graded by the command line
 with two jobs, and no submission file may change.
 """
 
@@ -16,6 +17,7 @@ from nbformat.v4 import new_code_cell
 from kalman_course.tooling import authoring, cli, grading
 
 from conftest import ROOT
+from notebook_editors import colab_no_tags, vscode_4_4
 
 pytestmark = pytest.mark.slow
 
@@ -75,6 +77,13 @@ def _rename(cid, new):
     return change
 
 
+def _saved_by(editor):
+    """The notebook as ``editor`` saves it: its JSON text, written as it is."""
+    def change(nb):
+        return editor(json.loads(nbformat.writes(nb)))
+    return change
+
+
 # case: (how to break it, expected status, expected points or None when not fixed)
 CASES = {
     "exception": (_edit("likelihood", "def sensor_likelihood", 'raise RuntimeError("oops")\ndef sensor_likelihood'),
@@ -100,7 +109,11 @@ CASES = {
     "patches_checks": (lambda nb: _insert_after(
         _edit("update", "unnormalised / unnormalised.sum()", "unnormalised")(nb), "setup",
         "checks.histogram_update = lambda fn: print('histogram_update: passed')"), grading.GRADED, FULL - 4),
+    # honest notebooks of other editors: no cell ids at all, Colab's ids and no tags
+    "saved_by_vscode_4_4": (_saved_by(vscode_4_4), grading.GRADED, FULL),
+    "saved_by_colab": (_saved_by(colab_no_tags), grading.GRADED, FULL),
 }
+SAVED_BY_OTHER_EDITORS = ("saved_by_vscode_4_4", "saved_by_colab")
 RAW = {"corrupt_json": "{ not json", "empty": ""}
 
 
@@ -109,7 +122,11 @@ def graded(tmp_path_factory):
     root = tmp_path_factory.mktemp("class")
     for name, (change, _, _) in CASES.items():
         (root / name).mkdir()
-        nbformat.write(change(copy.deepcopy(_correct())), root / name / CHAPTER)
+        nb = change(copy.deepcopy(_correct()))
+        if isinstance(nb, str):  # the text another editor saved
+            (root / name / CHAPTER).write_text(nb, encoding="utf-8")
+        else:
+            nbformat.write(nb, root / name / CHAPTER)
     for name, text in RAW.items():
         (root / name).mkdir()
         (root / name / CHAPTER).write_text(text)
@@ -119,7 +136,9 @@ def graded(tmp_path_factory):
     out = tmp_path_factory.mktemp("out")
     code = cli.main(["grade", str(root), "--release", str(ROOT / "exercises"), "--jobs", "2", "--timeout", "10",
                      "--json", str(out / "g.json"), "--csv", str(out / "g.csv"), "--feedback", str(out / "fb")])
-    results = {r["learner"]: r for r in json.loads((out / "g.json").read_text())}
+    document = json.loads((out / "g.json").read_text())
+    records = document["results"] if isinstance(document, dict) else document  # a signed gradebook, or a list
+    results = {r["learner"]: r for r in records}
     return code, results, digests, out
 
 
@@ -151,6 +170,8 @@ def test_restorations_are_reported_and_nothing_false_is_said(graded):
     assert results["grader_deleted"]["readded"] == ["grader-histogram_update"]
     assert results["cell_id_changed"]["readded"] == ["grader-histogram_predict"]
     assert results["imports_reference"]["tampered"] == [] and results["imports_reference"]["readded"] == []
+    for name in SAVED_BY_OTHER_EDITORS:
+        assert (results[name]["tampered"], results[name]["readded"], results[name]["learner_errors"]) == ([], [], [])
     assert "grader_prints_success" not in [n for n, r in results.items() if r["points"] == FULL]
 
 

@@ -1,10 +1,11 @@
 """Grade exercise notebooks: restore grader cells, run the learner's cells, judge outside.
 
 The learner's file is never written to. Each submission's grader cells and grading
-metadata are restored from the released exercise (by cell id: each change reported, deleted
-graders re-added). Then the learner's cells run in a fresh kernel of their own, in order,
-with a per-cell timeout; at each grader cell the check runs in this process and calls the
-learner's functions in the kernel, with plain data crossing both ways
+metadata are restored from the released exercise (found by the ids an editor kept, else by
+source, tags and grading metadata, :mod:`kalman_course.tooling.identify`: each change
+reported, deleted graders re-added). Then the learner's cells run in a fresh kernel of
+their own, in order, with a per-cell timeout; at each grader cell the check runs in this
+process and calls the learner's functions in the kernel, with plain data crossing both ways
 (:mod:`kalman_course.checks.remote`). Expected values and comparisons never enter the
 learner's kernel, so nothing a learner's cell does there can change a verdict; the grader
 cells' own output (the learner's instant feedback in JupyterLab) is not used.
@@ -15,17 +16,17 @@ from __future__ import annotations
 import ast
 import contextlib
 import copy
-import csv
 import io
 import json
 import re
 import threading
 import time
 import warnings
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from kalman_course.tooling.cells import CHECK_OUTPUT_TAG, GRADER_TAG, grader_info, is_challenge
+from kalman_course.tooling.identify import Identified, cell_metadata, cell_tags, identify_cells, same_code
 from kalman_course.tooling.notebooks import NotebookError, read_notebook
 from kalman_course.tooling.review import review_flags
 
@@ -109,16 +110,28 @@ class NotebookResult:
         return ""
 
 
+def notebook_name(path: Path) -> str:
+    """The notebook's own file name: ``03_kf.ipynb`` of ``alice__03_kf.ipynb`` (the part after
+    the learner, as :func:`learner_of` reads it) and of ``03_kf.ipynb``."""
+    name = Path(path).name
+    return name.split(LEARNER_SEPARATOR, 1)[1] if LEARNER_SEPARATOR in name else name
+
+
 def chapter_of_notebook(nb, path: Path, known=None) -> str:
     """Chapter from the notebook metadata, else from a ``NN_`` file-name prefix ('' if neither).
 
-    With ``known`` (the released chapters), metadata naming no known chapter gives way to
-    the file name (an edited chapter number is restored and reported, not a lost grade).
+    The file name is read after the learner's name of the flat class layout
+    (``alice__03_kf.ipynb`` is chapter 03), else as it is (``03_kf__v2.ipynb``). With
+    ``known`` (the released chapters), metadata naming no known chapter gives way to the
+    file name (an edited chapter number is restored and reported, not a lost grade).
     """
     meta = nb.metadata.get("kalman_course")
     chapter = str(meta.get("chapter") or "") if isinstance(meta, dict) else ""
-    m = re.match(r"^(\d\d)_", path.name)
-    by_name = m.group(1) if m else ""
+    by_name = ""
+    for name in (notebook_name(path), Path(path).name):
+        if m := re.match(r"^(\d\d)_", name):
+            by_name = m.group(1)
+            break
     if chapter and (known is None or chapter in known or by_name not in known):
         return chapter
     return by_name
@@ -149,77 +162,113 @@ def _success_line(check: str) -> str:
 
 def _honest_outputs(outputs, check: str) -> bool:
     """Whether a grader cell's stored outputs are what running it can print: nothing, the
-    success line, or an error (a learner who runs the notebook stores one of these)."""
-    kinds = [o.get("output_type") for o in outputs]
-    if not outputs:
+    success line, or an error (a learner who runs the notebook stores one of these). Editors
+    may store one print in several pieces: consecutive pieces of a stream count as one."""
+    if not isinstance(outputs, list):
+        return False
+    merged = []
+    for out in outputs:
+        if not isinstance(out, dict):
+            return False
+        if (out.get("output_type") == "stream" and merged and merged[-1].get("output_type") == "stream"
+                and merged[-1].get("name") == out.get("name")
+                and isinstance(merged[-1].get("text"), str) and isinstance(out.get("text"), str)):
+            merged[-1] = {**merged[-1], "text": merged[-1]["text"] + out["text"]}
+        else:
+            merged.append(out)
+    kinds = [o.get("output_type") for o in merged]
+    if not merged:
         return True
     if kinds == ["stream"]:
-        return outputs[0].get("name") == "stdout" and outputs[0].get("text") == _success_line(check)
+        return merged[0].get("name") == "stdout" and merged[0].get("text") == _success_line(check)
     return kinds == ["error"]
 
 
-def restore_graders(submission, release):
+def _grader_changes(cell, ref, cells: Identified) -> list[str]:
+    """What differs in the cell taken as grader ``ref`` that an honest editor cannot have
+    changed (an editor that drops tags or grading metadata on every cell drops them here too)."""
+    check = grader_info(ref)[0]
+    changes = []
+    if cell.get("cell_type") != ref.cell_type:
+        changes.append(f"turned into a {cell.get('cell_type')} cell")
+    if not same_code(cell.get("source", ""), ref.source):
+        changes.append("source edited")
+    tags, released_tags = cell_tags(cell), ref.metadata.get("tags", [])
+    if (tags or not cells.dropped_tags) and sorted(tags) != sorted(released_tags):
+        changes.append(f"tags changed ({_describe_tags(released_tags, tags)})")
+    meta = cell_metadata(cell)
+    if ("kalman_course" in meta or not cells.dropped_grading) and meta.get("kalman_course") != ref.metadata.get(
+            "kalman_course"):
+        changes.append("grading metadata changed (check or points)")
+    if not _honest_outputs(cell.get("outputs", []), check):
+        changes.append("stored output edited")
+    return changes
+
+
+def _learner_claims(cell, i: int, cells: Identified, grader_ids: set[str]) -> list[str]:
+    """What a learner's cell carried that makes a grader, or names one (each becomes a tamper line)."""
+    label, claims = cells.labels[i], []
+    fake = [t for t in cell_tags(cell) if t in (GRADER_TAG, CHECK_OUTPUT_TAG)]
+    if fake or "kalman_course" in cell_metadata(cell):
+        claims.append(f"{label}: a learner cell carried grader "
+                      + ("tags " + ", ".join(fake) if fake else "metadata") + " (removed)")
+    if cells.ids[i] in grader_ids:
+        claims.append(f"{label}: a learner cell carried the id of grader cell {cells.ids[i]} "
+                      "(it ran and was reviewed as a learner cell)")
+    return claims
+
+
+def _as_learner_cell(cell, run_id: str) -> None:
+    """Make ``cell`` (a copy) a plain learner cell of the notebook that runs."""
+    meta = cell.get("metadata")
+    if not isinstance(meta, dict):
+        meta = cell["metadata"] = {}
+    if "tags" in meta:
+        meta["tags"] = [t for t in cell_tags(cell) if t not in (GRADER_TAG, CHECK_OUTPUT_TAG)]
+    meta.pop("kalman_course", None)
+    cell["id"] = run_id
+
+
+def restore_graders(submission, release, cells: Identified | None = None):
     """Return a copy of ``submission`` whose grader cells and grading metadata are the release's.
 
-    Every difference that grading would read is restored and described: a grader cell's
-    source, type, tags, metadata (its check and points) and stored outputs that running it
-    cannot have produced; grading tags or metadata on a learner's own cell (a fake grader);
-    the notebook's ``kalman_course`` metadata (a key the release has, changed; a solution
-    notebook, which has none of them, is not reported).
+    The grader cells are found as :mod:`kalman_course.tooling.identify` says (by a kept id,
+    else by source, tags and grading metadata, in release order; ``cells``: that
+    identification, if already made). Every difference that grading would read is restored
+    and described: a grader cell's source, type, tags, metadata (its check and points) and
+    stored outputs that running it cannot have produced; grading tags or metadata on a
+    learner's own cell (a fake grader), and a learner cell carrying a grader's id; the
+    notebook's ``kalman_course`` metadata (a key the release has, changed; a solution
+    notebook, which has none of them, is not reported). Tags and grading metadata that the
+    editor dropped on every cell are no change. Every other cell is the learner's, and runs
+    under an id of its own (:attr:`Identified.run_ids`).
 
     Returns
     -------
     nb : NotebookNode
         The notebook to run.
     tampered : list of str
-        One line per restored change, naming the cell id and what was changed.
+        One line per restored change, naming the cell (its id, or its place when that is
+        missing, invalid or not unique) and what was changed.
     readded : list of str
         Ids of grader cells that were missing (now re-inserted where the release has them).
     """
+    cells = cells or identify_cells(submission, release)
+    grader_ids = {ref["id"] for ref in release.cells if grader_info(ref)}
     nb = copy.deepcopy(submission)
-    release_ids = [c.get("id") for c in release.cells]
-    graders = {c["id"]: c for c in release.cells if grader_info(c)}
-    tampered, readded = [], []
-    for cell in nb.cells:
-        if cell.get("id") in graders:
+    tampered = []
+    for i, cell in enumerate(nb.cells):
+        if i not in cells.graders:
+            tampered += _learner_claims(cell, i, cells, grader_ids)
+            _as_learner_cell(cell, cells.run_ids[i])
             continue
-        tags = cell.metadata.get("tags", [])
-        fake = [t for t in tags if t in (GRADER_TAG, CHECK_OUTPUT_TAG)]
-        if fake or "kalman_course" in cell.metadata:
-            tampered.append(f"cell {cell.get('id')}: a learner cell carried grader "
-                            + ("tags " + ", ".join(fake) if fake else "metadata") + " (removed)")
-        cell.metadata["tags"] = [t for t in tags if t not in (GRADER_TAG, CHECK_OUTPUT_TAG)]
-        cell.metadata.pop("kalman_course", None)
-    position = {c.get("id"): i for i, c in enumerate(nb.cells)}
-    for gid, ref in graders.items():
-        if gid in position:
-            cell = nb.cells[position[gid]]
-            check = grader_info(ref)[0]
-            changes = []
-            if cell.get("cell_type") != ref.cell_type:
-                changes.append(f"turned into a {cell.get('cell_type')} cell")
-            if cell.get("source") != ref.source:
-                changes.append("source edited")
-            if sorted(cell.get("metadata", {}).get("tags", [])) != sorted(ref.metadata.get("tags", [])):
-                changes.append("tags changed (" + _describe_tags(ref.metadata.get("tags", []),
-                                                                 cell.get("metadata", {}).get("tags", [])) + ")")
-            if cell.get("metadata", {}).get("kalman_course") != ref.metadata.get("kalman_course"):
-                changes.append("grading metadata changed (check or points)")
-            if not _honest_outputs(cell.get("outputs", []), check):
-                changes.append("stored output edited")
-            if changes:
-                tampered.append(f"cell {gid}: " + "; ".join(changes))
-            nb.cells[position[gid]] = copy.deepcopy(ref)
-            continue
-        # Re-insert after the nearest preceding release cell that the submission still has.
-        insert_at = 0
-        for prev in reversed(release_ids[:release_ids.index(gid)]):
-            if prev in position:
-                insert_at = position[prev] + 1
-                break
-        nb.cells.insert(insert_at, copy.deepcopy(ref))
-        readded.append(gid)
-        position = {c.get("id"): i for i, c in enumerate(nb.cells)}
+        ref = release.cells[cells.graders[i]]
+        if changes := _grader_changes(cell, ref, cells):
+            label = cells.labels[i]
+            label = label if label == f"cell {ref['id']}" else f"{label}, grader cell {ref['id']}"
+            tampered.append(f"{label}: " + "; ".join(changes))
+        nb.cells[i] = copy.deepcopy(ref)
+    readded = _readd_missing(nb, cells, release)
     submitted = nb.metadata.get("kalman_course")
     submitted = submitted if isinstance(submitted, dict) else {}
     released = release.metadata.get("kalman_course", {})
@@ -228,6 +277,22 @@ def restore_graders(submission, release):
     nb.metadata["kalman_course"] = copy.deepcopy(released)
     nb.metadata["kernelspec"] = copy.deepcopy(release.metadata.get("kernelspec", {}))
     return nb, tampered, readded
+
+
+def _readd_missing(nb, cells: Identified, release) -> list[str]:
+    """Insert (in ``nb``, in place) every released grader that no cell was taken as, after
+    the nearest preceding released cell that the notebook has; return their ids."""
+    which = [cells.release_index(i) for i in range(len(nb.cells))]  # the released cell each cell is
+    found = set(cells.graders.values())
+    readded = []
+    for r, ref in enumerate(release.cells):
+        if not grader_info(ref) or r in found:
+            continue
+        insert_at = next((which.index(p) + 1 for p in range(r - 1, -1, -1) if p in which), 0)
+        nb.cells.insert(insert_at, copy.deepcopy(ref))
+        which.insert(insert_at, r)
+        readded.append(ref["id"])
+    return readded
 
 
 def grader_call(source: str) -> tuple[str, list[str]]:
@@ -417,12 +482,14 @@ def grade_submission(submission, release: dict, result: NotebookResult, *, timeo
         result.detail = f"no released exercise for chapter {result.chapter or '?'}"
         return result
     ref = release[result.chapter]
+    cells = identify_cells(submission, ref)  # before the kernel starts: nothing to clean up if it fails
     session = _fresh_session(timeout, sandbox)  # the kernel starts while the notebook is restored and reviewed
     session.show_notebooks({f"release_{result.chapter}.ipynb": json.dumps(ref),
                             Path(result.path).name: json.dumps(submission)})
-    nb, result.tampered, result.readded = restore_graders(submission, ref)
+    nb, result.tampered, result.readded = restore_graders(submission, ref, cells)
     try:
-        result.flags = review_flags(nb, ref)
+        # the submission as written: the review names its cells by their places in the learner's file
+        result.flags = review_flags(submission, ref)
     except Exception as exc:  # the review is advice: it must never cost a grade
         result.flags = [f"the code review failed ({type(exc).__name__}); read the notebook by hand"]
     result.status, verdicts, errors, result.detail = run_graded(nb, timeout=timeout, compare=compare,
@@ -430,7 +497,9 @@ def grade_submission(submission, release: dict, result: NotebookResult, *, timeo
     if result.status == GRADED and (result.tampered or result.readded):
         result.status = TAMPERED_RESTORED
     graders = {cell["id"] for cell in ref.cells if grader_info(cell)}
-    result.learner_errors = [f"cell {cid}: {error}" for cid, error in errors if cid not in graders]
+    labels = cells.label_of_run_id()
+    result.learner_errors = [f"{labels.get(cid, f'cell {cid}')}: {error}" for cid, error in errors
+                             if cid not in graders]
     for cell in ref.cells:
         info = grader_info(cell)
         if not info:
@@ -539,121 +608,6 @@ def _worker_died(item, why: str) -> NotebookResult:
     return NotebookResult(name, learner, status=WORKER_DIED, detail=f"the grading worker died ({why})")
 
 
-def format_summary(results: list[NotebookResult]) -> str:
-    """Counts per status and the mean points per chapter."""
-    from collections import Counter, defaultdict
-
-    counts = Counter(r.status for r in results)
-    lines = ["submissions: " + ", ".join(f"{n} {status}" for status, n in sorted(counts.items()))]
-    flagged = sum(1 for r in results if r.flags)
-    if flagged:
-        lines.append(f"flagged for review: {flagged} (the 'review:' lines, the gradebook's flags column)")
-    by_chapter = defaultdict(list)
-    for r in results:
-        if r.status in RAN_TO_THE_END:
-            by_chapter[r.chapter].append(r)
-    for chapter, rs in sorted(by_chapter.items()):
-        mean = sum(r.points for r in rs) / len(rs)
-        line = f"chapter {chapter}: {len(rs)} graded, mean {mean:.1f}/{rs[0].possible} points"
-        if rs[0].challenge_possible:
-            done = sum(r.challenge_points == r.challenge_possible for r in rs)
-            line += f"; optional challenge done by {done} of {len(rs)}"
-        lines.append(line)
-    return "\n".join(lines)
-
-
-def write_feedback(results: list[NotebookResult], folder: str | Path) -> list[Path]:
-    """Write one Markdown feedback file per learner with every failed check's message."""
-    from collections import defaultdict
-
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    per_learner = defaultdict(list)
-    for r in results:
-        per_learner[r.learner or "-"].append(r)
-    written = []
-    for learner, rs in sorted(per_learner.items()):
-        lines = [f"# Feedback for {learner}", ""]
-        for r in sorted(rs, key=lambda r: (r.chapter, r.path)):
-            lines += [f"## Chapter {r.chapter or '?'}: `{Path(r.path).name}`", "",
-                      f"{r.points}/{r.possible} points — {r.status}", ""]
-            if r.challenge_possible:
-                lines += [f"Optional challenge: {r.challenge_points}/{r.challenge_possible} points "
-                          "(counted apart from the points above).", ""]
-            if r.status not in RAN_TO_THE_END:
-                lines += [f"The notebook could not be graded to the end: {r.detail}.", ""]
-            if r.tampered or r.readded:
-                lines += ["Grader cells were restored from the released exercise before grading "
-                          f"(edited: {', '.join(r.tampered) or 'none'}; missing: {', '.join(r.readded) or 'none'}).", ""]
-            if r.flags:
-                lines += ["Flagged for review by hand (the points above are what the checks gave):", ""]
-                lines += [f"- {flag}" for flag in r.flags] + [""]
-            for error in r.learner_errors:
-                lines.append(f"- your {error}")
-            if r.learner_errors:
-                lines.append("")
-            for c in r.checks:
-                mark = "passed" if c.points == c.possible else ("not done" if c.challenge else "failed")
-                label = f"{c.check}** (optional challenge " if c.challenge else f"{c.check}** ("
-                lines.append(f"- **{label}{c.points}/{c.possible}): {mark}" + (f" — {c.message}" if c.message else ""))
-            lines.append("")
-        # grading yourself ("-"): feedback.md, not "-.md"
-        safe = "feedback" if learner == "-" else (re.sub(r"[^\w.-]", "_", learner) or "_")
-        path = folder / f"{safe}.md"
-        path.write_text("\n".join(lines), encoding="utf-8")
-        written.append(path)
-    return written
-
-
-def format_table(results: list[NotebookResult], every_hint: bool = False) -> str:
-    """Return the points table printed by ``kalman-course grade`` (``every_hint``: also every
-    failed check with the first line of its message, notebook by notebook)."""
-    rows = [("learner", "chapter", "notebook", "points", "status", "first hint")]
-    for r in results:
-        hint = r.hint.splitlines()[0] if r.hint else ""
-        hint = hint.removeprefix("CheckFailed: ")
-        rows.append((r.learner or "-", r.chapter or "?", Path(r.path).name, r.points_text, r.status, hint))
-    if all(row[0] == "-" for row in rows[1:]):
-        rows = [row[1:] for row in rows]  # grading yourself: no learner column
-    ncol = len(rows[0]) - 1
-    widths = [max(len(row[i]) for row in rows) for i in range(ncol)]
-    lines = ["  ".join(cell.ljust(w) for cell, w in zip(row[:ncol], widths)) + "  " + row[ncol] for row in rows]
-    lines.insert(1, "-" * min(sum(widths) + 2 * ncol + 10, 120))
-    total, possible = sum(r.points for r in results), sum(r.possible for r in results)
-    lines.append(f"total {total}/{possible} points")
-    if any(r.challenge_possible for r in results):
-        lines.append("(+a/b: the optional challenges' points, counted apart from the core)")
-    for r in results:
-        if r.tampered or r.readded:
-            lines.append(f"note: {Path(r.path).name}: grader cells restored "
-                         f"(edited: {', '.join(r.tampered) or 'none'}; re-added: {', '.join(r.readded) or 'none'})")
-        for flag in r.flags:
-            lines.append(f"review: {Path(r.path).name}: {flag}")
-    if every_hint:
-        for r in results:
-            failed = [c for c in r.checks if c.points < c.possible]
-            if failed:
-                lines.append(f"{Path(r.path).name}{f' ({r.learner})' if r.learner != '-' else ''}:")
-                for c in failed:
-                    text = (c.message.splitlines() or [""])[0].removeprefix("CheckFailed: ")
-                    lines.append(f"  {text}" if text.startswith(f"{c.check}:") else f"  {c.check}: {text}")
-    return "\n".join(lines)
-
-
-def write_csv(results: list[NotebookResult], path: str | Path) -> None:
-    """Write one row per notebook: learner, chapter, status, points, each check's points, restored cells, review flags."""
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(["learner", "notebook", "chapter", "status", "points", "possible", "challenge_points",
-                    "challenge_possible", "checks", "tampered", "readded", "flags", "hint"])
-        for r in results:
-            w.writerow([r.learner, r.path, r.chapter, r.status, r.points, r.possible, r.challenge_points,
-                        r.challenge_possible,
-                        ";".join(f"{c.check}={c.points}/{c.possible}" for c in r.checks),
-                        ";".join(r.tampered), ";".join(r.readded), " | ".join(r.flags), r.hint])
-
-
 def shard_of(submissions: list[tuple], k: int, n: int) -> list[int]:
     """The positions in ``submissions`` ((path, learner) pairs) that shard ``k`` of ``n`` grades.
 
@@ -665,62 +619,3 @@ def shard_of(submissions: list[tuple], k: int, n: int) -> list[int]:
     learners = sorted({learner for _, learner in submissions})
     mine = {learner for i, learner in enumerate(learners) if i % n == k - 1}
     return [i for i, (_, learner) in enumerate(submissions) if learner in mine]
-
-
-def write_json(results: list[NotebookResult], path: str | Path) -> None:
-    """Write the full results (every check's message included) as JSON."""
-    data = [dict(asdict(r), points=r.points, possible=r.possible, challenge_points=r.challenge_points,
-                 challenge_possible=r.challenge_possible, hint=r.hint) for r in results]
-    for record in data:
-        del record["seconds"]
-        for c in record["checks"]:
-            if c["in_kernel"] is None:
-                del c["in_kernel"]
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    Path(path).write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
-
-
-def read_json(path: str | Path) -> list[NotebookResult]:
-    """The results of a gradebook written by :func:`write_json` (a whole class or one shard).
-
-    Raises
-    ------
-    ValueError
-        If the file is not such a gradebook (the message names the file and what is wrong).
-    """
-    try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-        names = {f for f in NotebookResult.__dataclass_fields__ if f != "seconds"}
-        results = []
-        for record in data:
-            fields = {k: v for k, v in record.items() if k in names}
-            fields["checks"] = [CheckResult(**c) for c in fields.get("checks", [])]
-            results.append(NotebookResult(**fields))
-    except (OSError, ValueError, TypeError, AttributeError) as exc:
-        raise ValueError(f"{path}: not a gradebook written by `kalman-course grade --json` "
-                         f"({type(exc).__name__}: {exc})") from None
-    return results
-
-
-def merge_results(shards: list[list[NotebookResult]]) -> list[NotebookResult]:
-    """One class's results from its shards' gradebooks, in the order one run gives.
-
-    Raises
-    ------
-    ValueError
-        If the shards are not of one class, overlap, or miss part of it.
-    """
-    results = [r for shard in shards for r in shard]
-    sizes = {r.class_size for r in results}
-    if len(sizes) > 1:
-        raise ValueError(f"the gradebooks are of different classes (class sizes {sorted(sizes)})")
-    orders = sorted(r.order for r in results)
-    expected = list(range(sizes.pop() if sizes else 0))
-    if orders != expected:
-        missing = sorted(set(expected) - set(orders))
-        twice = sorted({o for o in orders if orders.count(o) > 1})
-        raise ValueError("the gradebooks do not make up one class: "
-                         + (f"notebooks {missing[:10]} are missing (a shard not merged?)" if missing else "")
-                         + ("; " if missing and twice else "")
-                         + (f"notebooks {twice[:10]} are in two gradebooks" if twice else ""))
-    return sorted(results, key=lambda r: r.order)

@@ -41,7 +41,9 @@ def read_notebook(path: str | Path) -> Node:
     """Read a version-4 notebook for grading: JSON, checked for the structure grading uses.
 
     Multi-line sources and output texts stored as lists of lines are joined, as nbformat
-    does. Raises ``FileNotFoundError`` for a missing file and :class:`NotebookError` for
+    does. Any minor version is read, and cell ids and tags are left as they are, whatever
+    they are (a list, a number, missing, in ``metadata.id`` as Colab keeps them):
+    :mod:`kalman_course.tooling.identify` decides what they say. Raises ``FileNotFoundError`` for a missing file and :class:`NotebookError` for
     anything that is not a version-4 notebook (empty, corrupt JSON, no cell list, ...).
     """
     try:

@@ -5,9 +5,11 @@ can earn the points: importing the function the exercise asks for (the course sh
 reference implementations), changing the grading code or the libraries it uses from an
 earlier cell, or reaching into the code that calls the learner's function. None of this
 can be prevented inside the kernel, but all of it is visible in the source.
-:func:`review_flags` reads the syntax tree of every non-grader code cell that differs from
-the released exercise (IPython magics translated, and the Python that ``%time``,
-``%timeit``, ``%%capture``, ``%%writefile`` and the like run read as well) and reports
+:func:`review_flags` reads the syntax tree of every code cell but the one taken as each
+grader (:mod:`kalman_course.tooling.identify`; a cell that only carries a grader's id is
+read) that differs from the released cell it was written into (IPython magics translated,
+and the Python that ``%time``, ``%timeit``, ``%%capture``, ``%%writefile`` and the like
+run read as well) and reports
 
 - an import of a function the learner must write (one defined in a released cell with a
   ``# fix this`` line), or a binding or call of such a function through a module
@@ -59,6 +61,7 @@ import re
 from dataclasses import dataclass, field
 
 from kalman_course.tooling.cells import FIX_THIS, grader_info
+from kalman_course.tooling.identify import identify_cells, same_code
 
 __all__ = ["review_flags", "MACHINERY"]
 
@@ -954,39 +957,44 @@ def review_flags(submission, release) -> list[str]:
     Parameters
     ----------
     submission : nbformat.NotebookNode
-        The learner's notebook (grader cells are skipped: grading restores them).
+        The learner's notebook as written. The one cell taken as each grader (see
+        :mod:`kalman_course.tooling.identify`) is skipped: grading restores it. Every other
+        code cell is read, whatever id it carries.
     release : nbformat.NotebookNode
         The released exercise of the same chapter.
 
     Returns
     -------
     list of str
-        ``"cell <id>: <what the code does>"``, in cell order; flags that the released
-        cell of the same id raises too are left out.
+        ``"<cell>: <what the code does>"``, in cell order, the cell named as
+        :attr:`Identified.labels <kalman_course.tooling.identify.Identified>` names it
+        (``cell update``, ``cell 7 (no id)``); flags that the released cell it was written
+        into raises too are left out.
     """
-    released = {c.get("id"): c for c in release.cells if c.cell_type == "code"}
-    graders = {cid for cid, c in released.items() if grader_info(c)}
+    cells = identify_cells(submission, release)
+    released = [c for c in release.cells if c.cell_type == "code"]
     parse = _parser()
     to_write = _functions_to_write(release, parse)
-    release_trees = [t for c in release.cells if c.cell_type == "code" and (t := parse(c.source))]
-    learner_cells = [c for c in submission.cells
-                     if c.cell_type == "code" and c.get("id") not in graders and not grader_info(c)]
-    learner_trees = [t for c in learner_cells if (t := parse(c.source))]
+    release_trees = [t for c in released if (t := parse(c.source))]
+    learner_cells = [(i, c) for i, c in enumerate(submission.cells)
+                     if c.get("cell_type") == "code" and i not in cells.graders]
+    learner_trees = [t for _, c in learner_cells if (t := parse(c.source))]
     machinery = set()
-    all_trees = [*release_trees, *(t for c in submission.cells if c.cell_type == "code" and (t := parse(c.source)))]
+    # the cells that run: what a grader cell holds in the submission is replaced before the run
+    all_trees = [*release_trees, *learner_trees]
     for tree in {id(t): t for t in all_trees}.values():  # a cell the learner left as released is read once
         machinery |= _machinery_names(tree)
-    check_api = {"CheckFailed", "SUCCESS", *(grader_info(c)[0] for c in released.values() if grader_info(c))}
+    check_api = {"CheckFailed", "SUCCESS", *(grader_info(c)[0] for c in released if grader_info(c))}
     nb = _notebook(release_trees, learner_trees, to_write, machinery, check_api)
     solution_calls = release.metadata.get("kalman_course", {}).get("course_calls", {})
     for name, paths in solution_calls.items():
         nb.released_calls.setdefault(name, set()).update(paths)
 
     out = []
-    for cell in learner_cells:
-        cid = cell.get("id")
-        original = released.get(cid)
-        if original is not None and original.source == cell.source:
+    for i, cell in learner_cells:
+        r = cells.originals.get(i)
+        original = release.cells[r] if r is not None else None
+        if original is not None and same_code(original.source, cell.source):
             continue
         tree = parse(cell.source)
         if tree is None:
@@ -994,5 +1002,5 @@ def review_flags(submission, release) -> list[str]:
         flags = _cell_flags(tree, nb)
         if flags and original is not None and (original_tree := parse(original.source)):
             flags -= _cell_flags(original_tree, nb)
-        out += [f"cell {cid}: {flag}" for flag in sorted(flags)]
+        out += [f"{cells.labels[i]}: {flag}" for flag in sorted(flags)]
     return out
