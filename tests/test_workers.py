@@ -128,6 +128,6 @@ def test_the_limits_are_described_as_readme_states_them():
 
     text = sandbox.Limits().describe()
     assert text.startswith("4 GiB address space per process, 128 processes, 1800 CPU s per process")
-    readme = (ROOT / "README.md").read_text()
+    readme = " ".join((ROOT / "README.md").read_text().split())
     assert "4 GiB of address space per process, 128 processes" in readme
     assert "1800 CPU seconds per process, files up to 64 MiB, a 256 MiB HOME and a 256 MiB `/tmp`" in readme

@@ -25,7 +25,7 @@ import numpy as np
 from kalman_course.checks import plain_data
 
 #: The largest answer a check accepts, in characters of JSON (a whole ESKF run is ~5 MB).
-MAX_ANSWER = 64 * 2**20
+MAX_ANSWER = 16 * 2**20
 
 #: Dataclass instances received whole earlier in this kernel, by handle (see plain_data.encode).
 _HANDLES: dict[int, object] = {}

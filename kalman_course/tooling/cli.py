@@ -105,7 +105,7 @@ def _cmd_grade(args: argparse.Namespace) -> int:
         return 2
     from kalman_course.tooling import sealed
 
-    sealed.preload()  # nothing is imported once a learner's kernel runs
+    sealed.preload(_checks_of(submissions, release))  # nothing is imported once a learner's kernel runs
     fingerprint = sealed.Fingerprint()
     jobs = args.jobs or os.cpu_count() or 1
     where = "in a sandbox of its own" if sandbox else "not sandboxed"
@@ -130,6 +130,23 @@ def _cmd_grade(args: argparse.Namespace) -> int:
         return 2
     args.sandbox_text = sandbox.describe() if sandbox else "none (--no-sandbox)" if args.no_sandbox else "none"
     return _report(results, args)
+
+
+def _checks_of(submissions, release) -> set[str]:
+    """The checks of every released chapter these submissions seem to be (by their metadata or
+    file name; a notebook that cannot be read needs none)."""
+    from kalman_course.tooling import grading
+    from kalman_course.tooling.cells import grader_info
+    from kalman_course.tooling.notebooks import NotebookError, read_notebook
+
+    chapters = set()
+    for path, _ in submissions:
+        try:
+            chapters.add(grading.chapter_of_notebook(read_notebook(path), Path(path), release))
+        except (NotebookError, OSError, ValueError, RecursionError):
+            continue
+    return {grader_info(cell)[0] for chapter in chapters & release.keys() for cell in release[chapter].cells
+            if grader_info(cell)}
 
 
 def _open_sandbox(args: argparse.Namespace, grading_a_class: bool):

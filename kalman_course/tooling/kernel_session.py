@@ -22,6 +22,7 @@ import uuid
 from dataclasses import dataclass
 
 import zmq
+from zmq.utils.monitor import recv_monitor_message
 from jupyter_client.kernelspec import KernelSpec, KernelSpecManager
 from jupyter_client.manager import KernelManager
 
@@ -35,8 +36,13 @@ POLL = 0.25
 INTERRUPT_GRACE = 5.0
 #: What a channel reader's judge returns while the message it waits for has not come.
 _PENDING = object()
+#: What a channel reader gets for a message ZeroMQ cut off (over the bound) or that cannot be read.
+_CUT_OFF = object()
 #: Statuses a lost kernel reports (the same words as the gradebook's).
 TIMED_OUT, KERNEL_DIED = "timed out", "kernel died"
+#: Messages the grading process's sockets hold from a kernel before ZeroMQ drops more: with
+#: :data:`MAX_MESSAGE`, what a flooding kernel can make this process hold.
+QUEUED_MESSAGES = 16
 
 #: Run once in a fresh kernel, before the learner's cells: the agent starts listening.
 _AGENT_LISTEN = "__import__('kalman_course.checks.kernel_agent', fromlist=['listen']).listen(get_ipython(), globals())"
@@ -48,9 +54,9 @@ _KERNEL_ARGV = [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_f
                 "--HistoryManager.enabled=False"]  # no history database shared between learners' kernels
 
 #: The largest message the grading process accepts from a kernel, in bytes: larger ones are
-#: refused by ZeroMQ as they arrive (the peer is cut off, and the call runs out of time),
-#: before they take any memory here. An honest kernel's agent refuses a larger answer itself.
-MAX_MESSAGE = MAX_ANSWER + 16 * 2**20
+#: refused by ZeroMQ as they arrive (the peer is cut off), before they take any memory here.
+#: An honest kernel's agent refuses a larger answer itself, with a message.
+MAX_MESSAGE = MAX_ANSWER + 4 * 2**20
 
 
 class _Spec(KernelSpecManager):
@@ -104,7 +110,6 @@ class KernelSession(Session):
         self.sandbox = sandbox
         self.folder = tempfile.mkdtemp(prefix="kalman-grade-")
         self._comm_id = None
-        self._cgroup = None
         channels = os.path.join(self.folder, "channels")
         self.files = os.path.join(self.folder, "files")  # what the kernel sees of the notebook (read-only)
         os.mkdir(channels)
@@ -115,19 +120,22 @@ class KernelSession(Session):
         env["PYDEVD_DISABLE_FILE_VALIDATION"] = "1"  # no debugger warning on stderr
         env["IPYTHONDIR"] = os.path.join(self.folder, ".ipython")  # a profile of its own: no shared start-up files
         argv, interrupt_mode = _KERNEL_ARGV, "signal"
+        self._sandboxed = None
         if sandbox is not None:
-            argv, self._cgroup = sandbox.kernel_argv(
-                _KERNEL_ARGV, channels=channels, files={"notebooks": self.files},
-                env={"MPLBACKEND": "Agg", "PYDEVD_DISABLE_FILE_VALIDATION": "1"})
+            self._sandboxed = sandbox.prepare(_KERNEL_ARGV, channels=channels, files={"notebooks": self.files},
+                                              env={"MPLBACKEND": "Agg", "PYDEVD_DISABLE_FILE_VALIDATION": "1"})
+            argv = self._sandboxed.argv
             interrupt_mode = "message"  # a signal would reach bubblewrap, not the kernel inside
             env = {"PATH": os.environ.get("PATH", "/usr/bin:/bin")}  # bubblewrap sets the kernel's own
         # ipc: Unix sockets in the kernel's own folder (a TCP port would be the sandbox's own loopback)
         self.km = KernelManager(kernel_spec_manager=_Spec(argv, interrupt_mode), kernel_name="python3",
                                 transport="ipc", ip=os.path.join(channels, "kernel"))
         self.km.connection_file = os.path.join(channels, "kernel.json")
-        # its own log (a KeyboardInterrupt after a timeout, ...) is not the grader's output
+        self.km.write_connection_file()
+        os.chmod(self.km.connection_file, 0o644)  # the kernel may run as a user of its own
         self.kc = None
         _LIVE.add(self)
+        # its own log (a KeyboardInterrupt after a timeout, ...) is not the grader's output
         self.km.start_kernel(cwd=self.folder if sandbox is None else None, env=env,
                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
@@ -145,8 +153,11 @@ class KernelSession(Session):
         if self.kc is None:
             context = zmq.Context()
             context.setsockopt(zmq.MAXMSGSIZE, MAX_MESSAGE)  # every socket of this client: bounded
+            context.setsockopt(zmq.RCVHWM, QUEUED_MESSAGES)
             self.kc = self.km.client(context=context)
             self.kc.start_channels()
+            # ZeroMQ cuts off a kernel whose message is over the bound: said on this monitor
+            self._cut_offs = self.kc.iopub_channel.socket.get_monitor_socket(zmq.EVENT_DISCONNECTED)
 
     def wait_until_ready(self, timeout: float = 60.0) -> None:
         """Block until the kernel answers and its agent listens (start it first; overlap other
@@ -156,6 +167,8 @@ class KernelSession(Session):
             self.kc.wait_for_ready(timeout=timeout)
         except RuntimeError as exc:
             raise KernelLost(KERNEL_DIED, f"the kernel did not start ({exc})") from None
+        if self._sandboxed is not None:
+            self._sandboxed.started()
         outcome = self.run_cell(_AGENT_LISTEN, silent=True, timeout=timeout)
         if outcome.status != "ok":
             raise KernelLost(KERNEL_DIED, f"the grading agent did not start in the kernel ({outcome.error})")
@@ -187,9 +200,10 @@ class KernelSession(Session):
         except (OSError, subprocess.TimeoutExpired):  # already gone
             pass
         if self.kc is not None:
+            self._cut_offs.close(linger=0)
             self.kc.context.destroy(linger=0)
-        if self._cgroup is not None:
-            self._cgroup.remove()
+        if self._sandboxed is not None:
+            self._sandboxed.remove()
         shutil.rmtree(self.folder, ignore_errors=True)
 
     # -- cells -------------------------------------------------------------------------
@@ -199,7 +213,7 @@ class KernelSession(Session):
         """Run ``source`` in the kernel and wait for it (``capture``: also collect stdout)."""
         msg_id = self.kc.execute(source, silent=silent, store_history=not silent, allow_stdin=False,
                                  stop_on_error=False)
-        reply = self._reply(msg_id, self.timeout if timeout is None else timeout)
+        reply = self._reply(msg_id, self.timeout if timeout is None else timeout, keep_output=capture)
         stdout = self._stdout(msg_id) if capture else ""
         self._drain()
         if reply is None:
@@ -209,13 +223,25 @@ class KernelSession(Session):
             return CellOutcome("ok", "", stdout)
         return CellOutcome("error", f"{content.get('ename', 'Error')}: {content.get('evalue', '')}", stdout)
 
-    def _reply(self, msg_id: str, timeout: float):
-        """The execute reply to ``msg_id``, or None after interrupting a cell that ran out of time."""
+    def _reply(self, msg_id: str, timeout: float, keep_output: bool = False):
+        """The execute reply to ``msg_id``, or None after interrupting a cell that ran out of time
+        (``keep_output``: leave what the cell publishes to be read; else it is dropped as it comes)."""
         def judge(msg, interrupted):
-            if msg["parent_header"].get("msg_id") != msg_id:
+            if msg is _CUT_OFF or msg["parent_header"].get("msg_id") != msg_id:
                 return _PENDING
             return None if interrupted else msg
-        return self._wait(self.kc.get_shell_msg, judge, timeout, "a cell")
+
+        def get_msg(timeout):
+            if not keep_output:
+                self._discard_published()
+            return self.kc.get_shell_msg(timeout=min(timeout, 0.05 if not keep_output else timeout))
+        return self._wait(get_msg, judge, timeout, "a cell")
+
+    def _discard_published(self) -> None:
+        """Drop what the kernel has published so far, unread (a flood of outputs costs nothing)."""
+        socket = self.kc.iopub_channel.socket
+        while socket.poll(0):
+            socket.recv_multipart(copy=False)
 
     def _wait(self, get_msg, judge, timeout: float, what: str):
         """Read a channel until ``judge(msg, interrupted)`` gives something else than _PENDING.
@@ -245,6 +271,8 @@ class KernelSession(Session):
                 if not self.km.is_alive():
                     raise KernelLost(KERNEL_DIED, "the kernel died (os._exit, a crash, or out of memory)")
                 continue
+            except ValueError:  # not signed with the session's key, or a part over the bound cut off
+                msg = _CUT_OFF
             outcome = judge(msg, interrupted)
             if outcome is not _PENDING:
                 return outcome
@@ -256,7 +284,7 @@ class KernelSession(Session):
         while time.monotonic() < end:
             try:
                 msg = self.kc.get_iopub_msg(timeout=POLL)
-            except queue.Empty:
+            except (queue.Empty, ValueError):  # ValueError: a message that cannot be read is no output
                 continue
             if msg["parent_header"].get("msg_id") != msg_id:
                 continue
@@ -267,16 +295,14 @@ class KernelSession(Session):
         return "".join(text)
 
     def _drain(self) -> None:
-        """Drop the published messages nobody asked for (outputs, status)."""
-        while True:
-            try:
-                self.kc.get_iopub_msg(timeout=0)
-            except queue.Empty:
-                return
+        """Drop the published messages nobody asked for (outputs, status), unread."""
+        self._discard_published()
 
     # -- the checks' calls -------------------------------------------------------------
 
     def exchange(self, request: str) -> str:
+        while self._cut_offs.poll(0):  # a cut-off during a cell is not this call's
+            recv_monitor_message(self._cut_offs)
         msg = self.kc.session.msg("comm_msg", content={"comm_id": self._comm_id, "data": {"request": request}})
         self.kc.shell_channel.send(msg)
         left = self.timeout if self.deadline is None else max(self.deadline - time.monotonic(), 0.5)
@@ -284,6 +310,10 @@ class KernelSession(Session):
         if reply is None:
             why = f"your function ran longer than the {self.timeout:g} s a check may take"
             return encode({"raised": Raised("TimeoutError", why)}, towards_kernel=False)
+        if reply.get("cut_off"):
+            why = (f"your function's answer was cut off: the grader receives no message over "
+                   f"{MAX_MESSAGE // 2**20} MiB, nor one it cannot read (does it return what the exercise asks for?)")
+            return encode({"raised": Raised("ValueError", why)}, towards_kernel=False)
         answer = reply.get("answer") if isinstance(reply, dict) else None
         if not isinstance(answer, str):
             why = ("the notebook did not answer the grader (an answer over "
@@ -295,6 +325,8 @@ class KernelSession(Session):
         """The data of the agent's reply to ``msg_id``; {} if the kernel went idle without one;
         None after interrupting a call that ran out of time."""
         def judge(msg, interrupted):
+            if msg is _CUT_OFF:
+                return {"cut_off": True}
             if msg["parent_header"].get("msg_id") != msg_id:
                 return _PENDING
             if msg["msg_type"] == "comm_msg" and not interrupted:
@@ -302,4 +334,10 @@ class KernelSession(Session):
             if msg["msg_type"] == "status" and msg["content"].get("execution_state") == "idle":
                 return None if interrupted else {}
             return _PENDING
-        return self._wait(self.kc.get_iopub_msg, judge, timeout, "a learner function")
+
+        def get_msg(timeout):
+            if self._cut_offs.poll(0):
+                recv_monitor_message(self._cut_offs)
+                return _CUT_OFF
+            return self.kc.get_iopub_msg(timeout=min(timeout, 0.05))
+        return self._wait(get_msg, judge, timeout, "a learner function")

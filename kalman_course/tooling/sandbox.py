@@ -17,17 +17,21 @@ sees:
   capabilities, a new terminal session.
 
 Limits (:class:`Limits`) are set as hard resource limits inside the sandbox before the
-kernel starts, so the learner's code cannot raise them. The kernel exempts root from
-``RLIMIT_NPROC``: when the grader runs as root, the number of processes is bounded by a
-``pids`` control group of the sandbox's own instead.
+kernel starts, so the learner's code cannot raise them. When the grader runs as root, each
+kernel runs as an unprivileged user of its own, and ``pids`` and ``memory`` control groups
+of the sandbox's own bound its processes and its whole memory.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
+import secrets
 import shutil
+import signal
 import subprocess
 import sys
+import time
 import uuid
 from dataclasses import dataclass
 from pathlib import Path
@@ -85,9 +89,11 @@ def bwrap_version(bwrap: str) -> str:
 def probe(bwrap: str) -> None:
     """Raise :class:`SandboxUnavailable` unless ``bwrap`` can build the sandbox here (some
     containers forbid user namespaces)."""
+    command = [bwrap, *_namespaces(), *_system_binds(), "--proc", "/proc", "--", "true"]
+    if os.geteuid() == 0:  # as each kernel will be started: as a user of its own
+        command = _as_user_launcher([], _unprivileged_uid()) + command
     try:
-        out = subprocess.run([bwrap, *_namespaces(), "--ro-bind", "/", "/", "--proc", "/proc", "--", "true"],
-                             capture_output=True, text=True, timeout=30)
+        out = subprocess.run(command, capture_output=True, text=True, timeout=30)
     except (OSError, subprocess.TimeoutExpired) as exc:
         raise SandboxUnavailable(f"bubblewrap did not run ({exc})") from None
     if out.returncode != 0:
@@ -131,17 +137,17 @@ def _system_binds() -> list[str]:
     return args
 
 
-def _matplotlib_font_cache() -> list[str]:
-    """matplotlib's font list, read-only in the kernel's config folder: without it each
-    kernel would spend seconds scanning the fonts again."""
+def _matplotlib_font_cache() -> list[tuple[str, str]]:
+    """(here, in the sandbox) of matplotlib's font list, read-only in the kernel's config
+    folder: without it each kernel would spend seconds scanning the fonts again."""
     try:
         import matplotlib
 
         cache = Path(matplotlib.get_cachedir())
     except Exception:  # no matplotlib or no cache folder: the kernel builds its own
         return []
-    return [arg for path in sorted(cache.glob("fontlist-*.json"))
-            for arg in ("--ro-bind", str(path), f"{SANDBOX_HOME}/.config/matplotlib/{path.name}")]
+    return [(str(path), f"{SANDBOX_HOME}/.config/matplotlib/{path.name}")
+            for path in sorted(cache.glob("fontlist-*.json"))]
 
 
 def _limits_launcher(limits: Limits) -> list[str]:
@@ -169,41 +175,107 @@ def _environment(extra: dict[str, str]) -> list[str]:
     return args
 
 
-class ProcessGroupCgroup:
-    """A ``pids`` control group holding one sandbox (used when the grader is root, whom
-    ``RLIMIT_NPROC`` does not bind), removed by :meth:`remove`."""
+class ControlGroups:
+    """The control groups that hold one sandbox when the grader is root: ``pids`` (``RLIMIT_NPROC``
+    does not bind root's processes) and ``memory`` (the whole sandbox's memory, its in-memory
+    folders included, not only each process's). :meth:`remove` ends what is left in them."""
 
-    def __init__(self, root: Path, limit: int):
-        self.path = root / f"kalman-course-{uuid.uuid4().hex[:12]}"
-        self.path.mkdir()
-        (self.path / "pids.max").write_text(str(limit))
+    PREFIX = "kalman-course-"
+
+    def __init__(self, roots: dict[str, Path], limits: Limits):
+        self.paths = []
+        name = f"{self.PREFIX}{uuid.uuid4().hex[:12]}"
+        for controller, root in roots.items():
+            path = root / name
+            path.mkdir()
+            self.paths.append(path)
+            for setting, value in _CGROUP_SETTINGS[(controller, (root / "cgroup.controllers").exists())](limits):
+                (path / setting).write_text(str(value))
 
     @staticmethod
-    def available_root() -> Path | None:
-        """The writable ``pids`` hierarchy (cgroup v1, or v2 with the controller on), or None."""
+    def available_roots() -> dict[str, Path]:
+        """Writable hierarchies by controller (cgroup v1, or a v2 root with the controller on)."""
         if os.geteuid() != 0:
-            return None
-        for root in (Path("/sys/fs/cgroup/pids"), Path("/sys/fs/cgroup")):
-            if (root / "cgroup.procs").exists() and os.access(root, os.W_OK):
-                controllers = root / "cgroup.subtree_control"
-                if root.name == "pids" or (controllers.exists() and "pids" in controllers.read_text().split()):
-                    return root
-        return None
+            return {}
+        roots = {}
+        unified = Path("/sys/fs/cgroup")
+        enabled = (unified / "cgroup.subtree_control")
+        for controller in ("pids", "memory"):
+            v1 = unified / controller
+            if (v1 / "cgroup.procs").exists() and os.access(v1, os.W_OK):
+                roots[controller] = v1
+            elif enabled.exists() and controller in enabled.read_text().split() and os.access(unified, os.W_OK):
+                roots[controller] = unified
+        return roots
+
+    @classmethod
+    def remove_stale(cls, roots: dict[str, Path]) -> None:
+        """Remove the empty groups an earlier run left (a group still in use is not empty)."""
+        for root in set(roots.values()):
+            for path in root.glob(f"{cls.PREFIX}*"):
+                with contextlib.suppress(OSError):
+                    path.rmdir()
 
     def enter_prefix(self) -> list[str]:
-        """A command prefix that moves itself into the group and then becomes the command
-        (everything it starts stays in the group)."""
-        return ["/bin/sh", "-c", 'echo 0 > "$0" && exec "$@"', str(self.path / "cgroup.procs")]
+        """A command prefix that moves itself into the groups and then becomes the command
+        (everything it starts stays in them)."""
+        moves = " && ".join(f'echo 0 > "${i}"' for i in range(len(self.paths)))
+        return ["/bin/sh", "-c", f'{moves} && shift {len(self.paths) - 1} && exec "$@"',
+                *(str(path / "cgroup.procs") for path in self.paths)]
+
+    def remove(self, seconds: float = 2.0) -> None:
+        """Kill whatever is still in the groups, then remove them."""
+        end = time.monotonic() + seconds
+        for path in self.paths:
+            while path.exists():
+                with contextlib.suppress(OSError, ValueError):
+                    for pid in (path / "cgroup.procs").read_text().split():
+                        with contextlib.suppress(ProcessLookupError):
+                            os.kill(int(pid), signal.SIGKILL)
+                try:
+                    path.rmdir()
+                except OSError:  # its last processes are still exiting
+                    if time.monotonic() > end:
+                        break
+                    time.sleep(0.02)
+
+
+#: What each controller's group is told, in cgroup v1 (False) and v2 (True).
+_CGROUP_SETTINGS = {
+    ("pids", False): lambda limits: [("pids.max", limits.processes)],
+    ("pids", True): lambda limits: [("pids.max", limits.processes)],
+    ("memory", False): lambda limits: [("memory.limit_in_bytes", limits.memory)],
+    ("memory", True): lambda limits: [("memory.max", limits.memory)],
+}
+
+
+@dataclass
+class PreparedKernel:
+    """How to start one sandboxed kernel, and what to undo once it is gone."""
+
+    argv: list[str]
+    channels: str
+    cgroups: ControlGroups | None = None
+
+    def started(self) -> None:
+        """The kernel has made its sockets: as root, make the channels folder read-only to the
+        kernel (which could otherwise fill the disk with files there)."""
+        if os.geteuid() == 0:
+            os.chown(self.channels, 0, 0)
+            os.chmod(self.channels, 0o755)
 
     def remove(self) -> None:
-        try:
-            self.path.rmdir()
-        except OSError:  # still has a process for an instant after the kill
-            pass
+        if self.cgroups is not None:
+            self.cgroups.remove()
 
 
 class Sandbox:
     """How to start one learner kernel inside bubblewrap.
+
+    When the grader runs as root, each kernel runs as an unprivileged user of its own (a
+    user id no account has), so that no file of root's, ``/proc/sys`` among them, is
+    writable from inside; the folders it needs are bound first where that user can reach
+    them, in a mount namespace that dies with the sandbox.
 
     Parameters
     ----------
@@ -216,13 +288,14 @@ class Sandbox:
     def __init__(self, bwrap: str, limits: Limits = Limits()):
         self.bwrap, self.limits = bwrap, limits
         self.version = bwrap_version(bwrap)
-        self._cgroup_root = ProcessGroupCgroup.available_root()
+        self._cgroup_roots = ControlGroups.available_roots()
+        ControlGroups.remove_stale(self._cgroup_roots)
 
     def describe(self) -> str:
         return f"{self.version} ({self.limits.describe()})"
 
-    def kernel_argv(self, kernel_argv: list[str], *, channels: str, files: dict[str, str],
-                    env: dict[str, str]) -> tuple[list[str], ProcessGroupCgroup | None]:
+    def prepare(self, kernel_argv: list[str], *, channels: str, files: dict[str, str],
+                env: dict[str, str]) -> PreparedKernel:
         """The command that runs ``kernel_argv`` in a new sandbox.
 
         Parameters
@@ -233,30 +306,70 @@ class Sandbox:
             The folder of the connection file and the ``ipc`` sockets, bound read-write at
             the same path.
         files : dict
-            Files to show read-only in the kernel's HOME: name there → path here.
+            Folders to show read-only in the kernel's HOME: name there → path here.
         env : dict
             Environment variables the kernel needs beyond the sandbox's own.
-
-        Returns
-        -------
-        argv : list of str
-        cgroup : ProcessGroupCgroup or None
-            The control group to remove once the kernel is gone (root only).
         """
-        args = [self.bwrap, *_namespaces(), *_system_binds()]
-        for root in [*_python_roots(), _package_dir()]:
-            args += ["--ro-bind", root, root]
-        args += ["--dev", "/dev", "--proc", "/proc",
-                 "--size", str(self.limits.tmp_size), "--tmpfs", "/tmp",
-                 "--size", str(self.limits.tmp_size), "--tmpfs", SANDBOX_HOME,
-                 "--bind", channels, channels]
-        for name, path in sorted(files.items()):
-            args += ["--ro-bind", path, f"{SANDBOX_HOME}/{name}"]
-        args += _matplotlib_font_cache()
+        as_root = os.geteuid() == 0
+        uid = _unprivileged_uid() if as_root else os.geteuid()
+        read_only = [(root, root) for root in [*_python_roots(), _package_dir()]]
+        read_only += [(path, f"{SANDBOX_HOME}/{name}") for name, path in sorted(files.items())]
+        read_only += _matplotlib_font_cache()
+        staged = []
+        if as_root:
+            # the kernel's own user may not pass through root's folders (a Python under /root):
+            # each is bound, in a mount namespace of the sandbox's own, where that user reaches it
+            stage = Path(channels).parent / "stage"
+            stage.mkdir(mode=0o711)
+            os.chmod(stage.parent, 0o711)
+            for i, (source, dest) in enumerate(read_only):
+                target = stage / str(i)
+                target.mkdir() if os.path.isdir(source) else target.touch()
+                staged.append((source, str(target)))
+                read_only[i] = (str(target), dest)
+            os.chown(channels, uid, uid)  # until the kernel has made its sockets (see PreparedKernel.started)
+        args = [self.bwrap, *_namespaces(), *_system_binds(),
+                "--dev", "/dev", "--size", str(self.limits.tmp_size // 4), "--tmpfs", "/dev/shm",
+                "--proc", "/proc",
+                "--size", str(self.limits.tmp_size), "--tmpfs", "/tmp",
+                "--size", str(self.limits.tmp_size), "--tmpfs", SANDBOX_HOME,
+                "--bind", channels, channels]
+        for source, dest in read_only:  # after HOME's folder, which some are shown in
+            args += ["--ro-bind", source, dest]
+        # nothing but the folders above is writable: not the sandbox's root, not /dev
+        args += ["--remount-ro", "/dev", "--remount-ro", "/"]
         args += ["--chdir", SANDBOX_HOME, *_environment(env), "--"]
         args += _limits_launcher(self.limits) + kernel_argv
-        cgroup = ProcessGroupCgroup(self._cgroup_root, self.limits.processes) if self._cgroup_root else None
-        return (cgroup.enter_prefix() + args if cgroup else args), cgroup
+        if as_root:
+            args = _as_user_launcher(staged, uid) + args
+        cgroups = ControlGroups(self._cgroup_roots, self.limits) if self._cgroup_roots else None
+        return PreparedKernel((cgroups.enter_prefix() + args) if cgroups else args, channels, cgroups)
+
+
+def _as_user_launcher(binds: list[tuple[str, str]], uid: int) -> list[str]:
+    """A command prefix, run as root, that binds ``binds`` (source, target) in a mount
+    namespace of its own and then becomes the command as user and group ``uid``."""
+    code = ("import ctypes, os, sys\n"
+            "libc = ctypes.CDLL(None, use_errno=True)\n"
+            "def call(result, what):\n"
+            "    if result != 0:\n"
+            "        raise OSError(ctypes.get_errno(), what)\n"
+            "call(libc.unshare(0x20000), 'unshare the mount namespace')\n"  # CLONE_NEWNS
+            "call(libc.mount(b'none', b'/', None, 0x44000, None), 'make the mounts private')\n"  # MS_REC | MS_PRIVATE
+            "n, uid = int(sys.argv[1]), int(sys.argv[2])\n"
+            "for source, target in zip(sys.argv[3:3 + n], sys.argv[3 + n:3 + 2 * n]):\n"
+            "    call(libc.mount(source.encode(), target.encode(), None, 0x5000, None), 'bind ' + source)\n"  # MS_BIND | MS_REC
+            "os.setgroups([])\n"
+            "os.setgid(uid)\n"
+            "os.setuid(uid)\n"
+            "os.execv(sys.argv[3 + 2 * n], sys.argv[3 + 2 * n:])\n")
+    return [sys.executable, "-I", "-S", "-c", code, str(len(binds)), str(uid),
+            *(source for source, _ in binds), *(target for _, target in binds)]
+
+
+def _unprivileged_uid() -> int:
+    """A user id of its own for one kernel, far above every account's (and below 2**31)."""
+    return 2**30 + secrets.randbelow(2**29)
 
 
 def open_sandbox(limits: Limits = Limits()) -> Sandbox:
