@@ -110,7 +110,7 @@ def test_github_actions_matrix_and_merge_give_the_single_runs_gradebook(graded):
                 target = artifacts / _expand(step["with"]["name"], values)
                 target.mkdir(parents=True)
                 shutil.copy(workspace / _expand(step["with"]["path"], values), target)
-            elif "run" in step and not step["run"].startswith("pip install"):
+            elif "run" in step and not step["run"].startswith(("pip install", "sudo apt-get install")):
                 _run(_expand(step["run"], values), workspace, env)
     workspace = tmp / "runner-merge"
     workspace.mkdir()
@@ -122,7 +122,7 @@ def test_github_actions_matrix_and_merge_give_the_single_runs_gradebook(graded):
             for folder in artifacts.glob(pattern):
                 for file in folder.iterdir():
                     shutil.copy(file, path / file.name)
-        elif "run" in step and not step["run"].startswith("pip install"):
+        elif "run" in step and not step["run"].startswith(("pip install", "sudo apt-get install")):
             _run(_expand(step["run"], inputs), workspace,
                  dict(_without_key(), **{k: _expand(str(v), inputs) for k, v in merge.get("env", {}).items()}))
     assert _outputs(workspace) == expected

@@ -1042,6 +1042,12 @@ def test_no_sandbox_is_said_on_the_console(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "note: --no-sandbox" in out and "not sandboxed" in out, out
     assert code == 1  # the notebook has no release: it did not run to the end
+    assert json.loads((tmp_path / "g.json").read_text())["run"]["sandbox"] == "none (--no-sandbox)"
+
+
+def test_the_gradebook_says_which_sandbox_graded(run):
+    sandbox = json.loads((run.out / "g.json").read_text())["run"]["sandbox"]
+    assert sandbox.startswith("bubblewrap ") and "128 processes" in sandbox, sandbox
 
 
 def test_a_class_is_not_graded_without_bubblewrap(tmp_path, monkeypatch, capsys):

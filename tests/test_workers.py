@@ -131,3 +131,19 @@ def test_the_limits_are_described_as_readme_states_them():
     readme = " ".join((ROOT / "README.md").read_text().split())
     assert "4 GiB of address space per process, 128 processes" in readme
     assert "1800 CPU seconds per process, files up to 64 MiB, a 256 MiB HOME and a 256 MiB `/tmp`" in readme
+
+
+def test_a_link_to_a_classmates_notebook_or_folder_is_not_graded_as_ones_own(tmp_path):
+    from conftest import ROOT
+
+    from kalman_course.tooling import grading
+
+    (tmp_path / "alice").mkdir()
+    (tmp_path / "alice" / "01_bayes_rule.ipynb").write_bytes((ROOT / "solutions" / "01_bayes_rule.ipynb").read_bytes())
+    (tmp_path / "bob").mkdir()
+    (tmp_path / "bob" / "01_bayes_rule.ipynb").symlink_to(tmp_path / "alice" / "01_bayes_rule.ipynb")
+    (tmp_path / "carol").symlink_to(tmp_path / "alice", target_is_directory=True)
+    found = cli._expand_notebooks([str(tmp_path)], recursive=True)
+    assert found == [tmp_path / "alice" / "01_bayes_rule.ipynb", tmp_path / "bob" / "01_bayes_rule.ipynb"]
+    result = grading.grade_notebook(found[1], {}, learner="bob")
+    assert result.status == grading.NOT_A_NOTEBOOK and "symbolic link" in result.detail

@@ -299,9 +299,15 @@ def _expand_notebooks(items: list[str], recursive: bool = False) -> list[Path]:
     found: list[Path] = []
     for item in items:
         p = Path(item)
-        if p.is_dir():
-            pattern = "**/*.ipynb" if recursive else "*.ipynb"
-            found.extend(q for q in sorted(p.glob(pattern)) if ".ipynb_checkpoints" not in q.parts)
+        if p.is_dir() and recursive:
+            # not into linked folders: a learner's folder that links to a classmate's is not theirs
+            walked = []
+            for folder, subfolders, files in os.walk(p):
+                subfolders[:] = [d for d in subfolders if d != ".ipynb_checkpoints"]
+                walked += [Path(folder, name) for name in files if name.endswith(".ipynb")]
+            found.extend(sorted(walked))
+        elif p.is_dir():
+            found.extend(q for q in sorted(p.glob("*.ipynb")))
         else:
             found.append(p)
     return found

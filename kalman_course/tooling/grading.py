@@ -460,6 +460,9 @@ def grade_notebook(path: str | Path, release: dict, *, timeout: float = 120.0,
     path = Path(path)
     result = NotebookResult(path=str(path), learner=learner)
     start = time.perf_counter()
+    if path.is_symlink():  # a link to a classmate's notebook is not the learner's own
+        result.status, result.detail = NOT_A_NOTEBOOK, "a symbolic link, not a notebook: hand in the file itself"
+        return result
     try:
         submission = read_notebook(path)
     except FileNotFoundError:
