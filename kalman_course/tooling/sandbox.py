@@ -176,9 +176,10 @@ def _environment(extra: dict[str, str]) -> list[str]:
 
 
 class ControlGroups:
-    """The control groups that hold one sandbox when the grader is root: ``pids`` (``RLIMIT_NPROC``
-    does not bind root's processes) and ``memory`` (the whole sandbox's memory, its in-memory
-    folders included, not only each process's). :meth:`remove` ends what is left in them."""
+    """The control groups that hold one sandbox when the grader is root: ``pids`` (every process
+    and thread of the sandbox together) and ``memory`` (the whole sandbox's memory, its
+    in-memory folders included, where ``RLIMIT_AS`` bounds each process alone). :meth:`remove`
+    ends what is left in them."""
 
     PREFIX = "kalman-course-"
 
