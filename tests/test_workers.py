@@ -147,3 +147,14 @@ def test_a_link_to_a_classmates_notebook_or_folder_is_not_graded_as_ones_own(tmp
     assert found == [tmp_path / "alice" / "01_bayes_rule.ipynb", tmp_path / "bob" / "01_bayes_rule.ipynb"]
     result = grading.grade_notebook(found[1], {}, learner="bob")
     assert result.status == grading.NOT_A_NOTEBOOK and "symbolic link" in result.detail
+
+
+def test_a_notebook_too_large_to_read_is_refused_unread(tmp_path, monkeypatch):
+    from kalman_course.tooling import grading
+
+    path = tmp_path / "01_bayes_rule.ipynb"
+    with open(path, "wb") as fh:
+        fh.truncate(grading.MAX_NOTEBOOK + 1)  # sparse: no disk used
+    monkeypatch.setattr(grading, "read_notebook", lambda path: pytest.fail("the notebook was read"))
+    result = grading.grade_notebook(path, {})
+    assert result.status == grading.NOT_A_NOTEBOOK and "more than the 100 MiB" in result.detail

@@ -37,6 +37,9 @@ GRADED, TAMPERED_RESTORED, TIMED_OUT, KERNEL_DIED, NOT_A_NOTEBOOK, NO_RELEASE, R
     "run error", "grading worker died")
 RAN_TO_THE_END = (GRADED, TAMPERED_RESTORED)
 
+#: The largest notebook file graded, in bytes (an exercise with its figures is a few MiB).
+MAX_NOTEBOOK = 100 * 2**20
+
 #: In a class folder, ``alice__03_kalman_filter.ipynb`` belongs to learner ``alice``.
 LEARNER_SEPARATOR = "__"
 
@@ -398,7 +401,7 @@ def run_graded(nb, *, timeout: float = 120.0, compare: bool = False, session=Non
     finally:
         session.close()
     if session.timed_out:
-        return TIMED_OUT, verdicts, errors, f"a cell ran longer than {timeout:g} s"
+        return TIMED_OUT, verdicts, errors, f"{session.timed_out} ran longer than {timeout:g} s"
     return GRADED, verdicts, errors, ""
 
 
@@ -462,6 +465,11 @@ def grade_notebook(path: str | Path, release: dict, *, timeout: float = 120.0,
     start = time.perf_counter()
     if path.is_symlink():  # a link to a classmate's notebook is not the learner's own
         result.status, result.detail = NOT_A_NOTEBOOK, "a symbolic link, not a notebook: hand in the file itself"
+        return result
+    if path.is_file() and path.stat().st_size > MAX_NOTEBOOK:  # read whole, it would fill the grader's memory
+        result.status = NOT_A_NOTEBOOK
+        result.detail = (f"{path.stat().st_size / 2**20:.0f} MiB, more than the {MAX_NOTEBOOK // 2**20} MiB "
+                         "a notebook may be (clear its outputs and save it again)")
         return result
     try:
         submission = read_notebook(path)

@@ -106,7 +106,7 @@ class KernelSession(Session):
         super().__init__()
         self.timeout = float(timeout)
         self.deadline = None  # set by the grader for the check that is running
-        self.timed_out = False
+        self.timed_out = ""  # what ran out of time and was interrupted ("a cell", "a learner function")
         self.sandbox = sandbox
         self.folder = tempfile.mkdtemp(prefix="kalman-grade-")
         self._comm_id = None
@@ -259,7 +259,7 @@ class KernelSession(Session):
                 if interrupted:
                     raise KernelLost(TIMED_OUT, f"{what} ran longer than {timeout:g} s and did not stop")
                 self.km.interrupt_kernel()
-                self.timed_out = interrupted = True
+                self.timed_out, interrupted = what, True
                 end = time.monotonic() + INTERRUPT_GRACE
             if now - alive_checked > POLL:
                 alive_checked = now
