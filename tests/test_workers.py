@@ -158,3 +158,17 @@ def test_a_notebook_too_large_to_read_is_refused_unread(tmp_path, monkeypatch):
     monkeypatch.setattr(grading, "read_notebook", lambda path: pytest.fail("the notebook was read"))
     result = grading.grade_notebook(path, {})
     assert result.status == grading.NOT_A_NOTEBOOK and "more than the 100 MiB" in result.detail
+
+
+def test_control_groups_of_a_unified_hierarchy_are_one_group(tmp_path):
+    # cgroup v2: both controllers in one hierarchy, one group holds the sandbox
+    (tmp_path / "cgroup.controllers").write_text("pids memory\n")
+    groups = sandbox.ControlGroups({"pids": tmp_path, "memory": tmp_path}, sandbox.Limits())
+    [path] = groups.paths
+    assert (path / "pids.max").read_text() == "128" and (path / "memory.max").read_text() == str(4 * 2**30)
+    prefix = groups.enter_prefix()
+    assert prefix[3:] == [str(path / "cgroup.procs")] and "shift 0" in prefix[2]
+    for name in ("pids.max", "memory.max"):
+        (path / name).unlink()  # a real group's files go with it
+    groups.remove()
+    assert not path.exists()

@@ -188,8 +188,9 @@ class ControlGroups:
         name = f"{self.PREFIX}{uuid.uuid4().hex[:12]}"
         for controller, root in roots.items():
             path = root / name
-            path.mkdir()
-            self.paths.append(path)
+            if path not in self.paths:  # cgroup v2: one group for every controller
+                path.mkdir()
+                self.paths.append(path)
             for setting, value in _CGROUP_SETTINGS[(controller, (root / "cgroup.controllers").exists())](limits):
                 (path / setting).write_text(str(value))
 
