@@ -407,6 +407,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
     try:
         return args.func(args)
+    except KeyboardInterrupt:  # Ctrl-C before or after the kernels ran (during them: see _cmd_grade)
+        print("\ninterrupted", file=sys.stderr)
+        return 130
     except (FileNotFoundError, NotADirectoryError, PermissionError) as exc:
         # a path the user gave (or the repository's folders, run from elsewhere): one line, no traceback
         where = f": {exc.filename}" if getattr(exc, "filename", None) else ""
