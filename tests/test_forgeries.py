@@ -25,7 +25,6 @@ from __future__ import annotations
 import copy
 import functools
 import json
-import textwrap
 from dataclasses import dataclass
 from typing import Callable
 
@@ -35,16 +34,12 @@ from nbformat.v4 import new_code_cell, new_output
 
 from kalman_course.tooling import authoring, cli
 
-from conftest import ROOT
+from conftest import ROOT, dedented as _code
 from notebook_editors import classic, colab_no_tags
 
 pytestmark = pytest.mark.slow
 
 CH01, CH03, CH09 = "01_bayes_rule.ipynb", "03_kalman_filter.ipynb", "09_tuning_consistency.ipynb"
-
-
-def _code(text: str) -> str:
-    return textwrap.dedent(text).strip("\n")
 
 
 # ---------------------------------------------------------------------------------------

@@ -38,7 +38,6 @@ import subprocess
 import sys
 import sysconfig
 import tempfile
-import textwrap
 import threading
 import time
 import uuid
@@ -50,8 +49,9 @@ import pytest
 from nbformat.v4 import new_code_cell, new_notebook
 
 from kalman_course.tooling import cli, grading
+from kalman_course.tooling.gradebook import KEY_VARIABLE
 
-from conftest import ROOT
+from conftest import ROOT, dedented as _code
 
 pytestmark = pytest.mark.slow
 
@@ -70,12 +70,6 @@ MARK = "kcattack" + uuid.uuid4().hex[:12]
 #: The fork bomb's `sleep` argument: a number only this module's sleepers carry.
 SLEEP = f"30.{random.randrange(10**8, 10**9)}"
 MiB = 2**20
-#: Where the instructor's gradebook key is (kalman_course.tooling.gradebook.KEY_VARIABLE).
-KEY_VARIABLE = "KALMAN_COURSE_GRADEBOOK_KEY"
-
-
-def _code(text: str) -> str:
-    return textwrap.dedent(text).strip("\n")
 
 
 # ---------------------------------------------------------------------------------------

@@ -134,17 +134,15 @@ def _cmd_grade(args: argparse.Namespace) -> int:
 
 def _checks_of(submissions, release) -> set[str]:
     """The checks of every released chapter these submissions seem to be (by their metadata or
-    file name; a notebook that cannot be read needs none)."""
+    file name; a file that is not one to grade needs none)."""
     from kalman_course.tooling import grading
     from kalman_course.tooling.cells import grader_info
-    from kalman_course.tooling.notebooks import NotebookError, read_notebook
 
     chapters = set()
     for path, _ in submissions:
-        try:
-            chapters.add(grading.chapter_of_notebook(read_notebook(path), Path(path), release))
-        except (NotebookError, OSError, ValueError, RecursionError):
-            continue
+        notebook, _why = grading.read_submission(Path(path))
+        if notebook is not None:
+            chapters.add(grading.chapter_of_notebook(notebook, Path(path), release))
     return {grader_info(cell)[0] for chapter in chapters & release.keys() for cell in release[chapter].cells
             if grader_info(cell)}
 

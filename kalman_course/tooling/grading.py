@@ -453,6 +453,23 @@ def learner_of(path: Path, root: Path | None = None) -> str:
     return "-"
 
 
+def read_submission(path: Path):
+    """``(notebook, "")`` of a submitted file, or ``(None, why)`` when it is not one to grade:
+    a symbolic link (a classmate's notebook is not the learner's own), a file too large to
+    read whole, a missing or unreadable file, anything but a version-4 notebook."""
+    if path.is_symlink():
+        return None, "a symbolic link, not a notebook: hand in the file itself"
+    if path.is_file() and path.stat().st_size > MAX_NOTEBOOK:  # read whole, it would fill the grader's memory
+        return None, (f"{path.stat().st_size / 2**20:.0f} MiB, more than the {MAX_NOTEBOOK // 2**20} MiB "
+                      "a notebook may be (clear its outputs and save it again)")
+    try:
+        return read_notebook(path), ""
+    except FileNotFoundError:
+        return None, f"no such file: {path}"
+    except (NotebookError, OSError) as exc:  # corrupt JSON, empty file, not a notebook at all
+        return None, f"cannot read it as a notebook: {exc}"
+
+
 def grade_notebook(path: str | Path, release: dict, *, timeout: float = 120.0,
                    learner: str = "-", compare: bool = False, sandbox=None) -> NotebookResult:
     """Grade one submitted notebook against the released exercises (``release`` by chapter).
@@ -463,21 +480,9 @@ def grade_notebook(path: str | Path, release: dict, *, timeout: float = 120.0,
     path = Path(path)
     result = NotebookResult(path=str(path), learner=learner)
     start = time.perf_counter()
-    if path.is_symlink():  # a link to a classmate's notebook is not the learner's own
-        result.status, result.detail = NOT_A_NOTEBOOK, "a symbolic link, not a notebook: hand in the file itself"
-        return result
-    if path.is_file() and path.stat().st_size > MAX_NOTEBOOK:  # read whole, it would fill the grader's memory
-        result.status = NOT_A_NOTEBOOK
-        result.detail = (f"{path.stat().st_size / 2**20:.0f} MiB, more than the {MAX_NOTEBOOK // 2**20} MiB "
-                         "a notebook may be (clear its outputs and save it again)")
-        return result
-    try:
-        submission = read_notebook(path)
-    except FileNotFoundError:
-        result.status, result.detail = NOT_A_NOTEBOOK, f"no such file: {path}"
-        return result
-    except (NotebookError, OSError) as exc:  # corrupt JSON, empty file, not a notebook at all
-        result.status, result.detail = NOT_A_NOTEBOOK, f"cannot read it as a notebook: {exc}"
+    submission, why = read_submission(path)
+    if submission is None:
+        result.status, result.detail = NOT_A_NOTEBOOK, why
         return result
     grade_submission(submission, release, result, timeout=timeout, compare=compare, sandbox=sandbox)
     result.seconds = time.perf_counter() - start

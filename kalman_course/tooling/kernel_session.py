@@ -107,7 +107,6 @@ class KernelSession(Session):
         self.timeout = float(timeout)
         self.deadline = None  # set by the grader for the check that is running
         self.timed_out = ""  # what ran out of time and was interrupted ("a cell", "a learner function")
-        self.sandbox = sandbox
         self.folder = tempfile.mkdtemp(prefix="kalman-grade-")
         self._comm_id = None
         channels = os.path.join(self.folder, "channels")
