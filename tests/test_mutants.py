@@ -7,20 +7,41 @@ import ast
 import nbformat
 import pytest
 
+from kalman_course.checks import cases
 from kalman_course.tooling import authoring
 from mutation_harness import SOLUTIONS, catalogues, solution
 
 CATALOGUES = catalogues()
 
 
+#: Run seeds of a graded run (kalman_course.checks.cases): each edit is also tried on the
+#: inputs drawn from one of them (edit k from seed k mod 3), so that the catalogue as a whole
+#: meets three draws besides the self-check's fixed cases.
+DRAWN_SEEDS = (20261202, 7, 2**62 + 11)
+
+
 def _cases(kind: str):
-    for stem, module in CATALOGUES.items():
-        for k, edit in enumerate(getattr(module, kind, ())):
-            yield pytest.param(module.NOTEBOOK, edit, id=f"{stem}-{edit.check}-{k}")
+    # fixed cases first, then one group per seed: the checks' cached cases are drawn once per group
+    for seed in (None, *DRAWN_SEEDS):
+        for stem, module in CATALOGUES.items():
+            for k, edit in enumerate(getattr(module, kind, ())):
+                if seed is None or DRAWN_SEEDS[k % len(DRAWN_SEEDS)] == seed:
+                    tag = "fixed" if seed is None else f"seed{DRAWN_SEEDS.index(seed)}"
+                    yield pytest.param(module.NOTEBOOK, edit, seed, id=f"{stem}-{edit.check}-{k}-{tag}")
 
 
-@pytest.mark.parametrize("notebook, mutant", list(_cases("MUTANTS")))
-def test_mutant_fails_its_check_with_a_hint_that_names_it(notebook, mutant):
+@pytest.fixture
+def run_seed():
+    """Set the run seed a test asks for; back to the fixed cases afterwards."""
+    def use(seed):
+        cases.set_run_seed(seed)
+    yield use
+    cases.set_run_seed(None)
+
+
+@pytest.mark.parametrize("notebook, mutant, seed", list(_cases("MUTANTS")))
+def test_mutant_fails_its_check_with_a_hint_that_names_it(notebook, mutant, seed, run_seed):
+    run_seed(seed)
     outcome = solution(notebook).grade(mutant)
     assert not outcome.passed, f"{mutant.check} passes a mutant: {mutant.mistake}"
     assert mutant.keyword.lower() in outcome.message.lower(), (
@@ -28,14 +49,16 @@ def test_mutant_fails_its_check_with_a_hint_that_names_it(notebook, mutant):
         f"(keyword {mutant.keyword!r}): {outcome.message}")
 
 
-@pytest.mark.parametrize("notebook, variant", list(_cases("EQUIVALENTS")))
-def test_correct_variant_passes(notebook, variant):
+@pytest.mark.parametrize("notebook, variant, seed", list(_cases("EQUIVALENTS")))
+def test_correct_variant_passes(notebook, variant, seed, run_seed):
+    run_seed(seed)
     outcome = solution(notebook).grade(variant)
     assert outcome.passed, f"{variant.check} rejects a correct variant ({variant.mistake}): {outcome.message}"
 
 
-@pytest.mark.parametrize("notebook, edit", list(_cases("EQUIVALENT_MUTANTS")))
-def test_listed_equivalent_mutant_is_really_equivalent(notebook, edit):
+@pytest.mark.parametrize("notebook, edit, seed", list(_cases("EQUIVALENT_MUTANTS")))
+def test_listed_equivalent_mutant_is_really_equivalent(notebook, edit, seed, run_seed):
+    run_seed(seed)
     # an edit listed as unable to change any result must indeed pass; if a check starts
     # rejecting it, it was not equivalent and belongs in MUTANTS
     outcome = solution(notebook).grade(edit)
