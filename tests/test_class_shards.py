@@ -29,6 +29,8 @@ pytestmark = pytest.mark.slow
 
 RECIPES = ROOT / "recipes"
 KEY = "the instructor's key for this test"
+#: The run seed of the single run, given to the recipes so that their shards draw the same inputs.
+SEED = "4096"
 
 
 def _class(folder: Path) -> Path:
@@ -57,7 +59,7 @@ def graded(tmp_path_factory):
         patch.setenv(gradebook.KEY_VARIABLE, KEY)
         code = cli.main(["grade", str(submissions), "--release", str(ROOT / "exercises"), "--jobs", "2",
                          "--csv", str(one / "grades.csv"), "--json", str(one / "grades.json"),
-                         "--feedback", str(one / "feedback")])
+                         "--feedback", str(one / "feedback"), "--seed", SEED])
     return tmp, submissions, code, _outputs(one)
 
 
@@ -94,8 +96,15 @@ def test_github_actions_matrix_and_merge_give_the_single_runs_gradebook(graded):
     trigger = workflow.get("on", workflow.get(True))  # YAML 1.1 reads the key `on` as True
     inputs = {f"inputs.{k}": v["default"] for k, v in trigger["workflow_dispatch"]["inputs"].items()}
     inputs.update({"inputs.submissions": str(submissions), "inputs.release": str(ROOT / "exercises"),
-                   f"secrets.{gradebook.KEY_VARIABLE}": KEY})
+                   "inputs.seed": SEED, f"secrets.{gradebook.KEY_VARIABLE}": KEY})
     grade, merge = workflow["jobs"]["grade"], workflow["jobs"]["merge"]
+    # the seed job: every shard is given the one seed it outputs
+    draw = workflow["jobs"]["seed"]
+    assert grade["needs"] == "seed"
+    github_output = tmp / "seed-output"
+    _run(_expand(draw["steps"][0]["run"], inputs), tmp, dict(_without_key(), GITHUB_OUTPUT=str(github_output)))
+    inputs["needs.seed.outputs.seed"] = github_output.read_text().strip().partition("=")[2]
+    assert inputs["needs.seed.outputs.seed"] == SEED
     assert merge["needs"] == "grade" and grade["strategy"]["fail-fast"] is False
     shards = grade["strategy"]["matrix"]["shard"]
     assert shards == list(range(1, int(grade["env"]["SHARDS"]) + 1))
@@ -163,7 +172,7 @@ def test_slurm_array_and_dependent_merge_give_the_single_runs_gradebook(graded, 
     key_file.write_text(KEY + "\n")
     key_file.chmod(0o600)
     out = tmp_path / "out"
-    _run(f"bash {RECIPES / 'grade-class-slurm.sh'} {submissions} {ROOT / 'exercises'} {out} 3 {key_file}",
+    _run(f"bash {RECIPES / 'grade-class-slurm.sh'} {submissions} {ROOT / 'exercises'} {out} 3 {key_file} {SEED}",
          tmp_path, env)
     assert sorted(p.name for p in (out / "shards").iterdir()) == ["shard-1.json", "shard-2.json", "shard-3.json"]
     assert _outputs(out) == expected

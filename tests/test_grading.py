@@ -151,7 +151,7 @@ def test_a_missing_file_is_named_as_missing(tmp_path):
 
 def _write(results, **outputs):
     """Write the gradebooks of ``results`` as one unsigned run of exactly them."""
-    run = gradebook.run_record([(r.learner, r.path) for r in results], sandbox="none")
+    run = gradebook.run_record([(r.learner, r.path) for r in results], sandbox="none", seed=1)
     return gradebook.write_gradebooks(results, run, **outputs)
 
 
@@ -220,7 +220,7 @@ def test_a_failing_review_never_costs_the_grade(tmp_path, monkeypatch):
         def show_notebooks(self, notebooks):
             pass
 
-    monkeypatch.setattr(grading, "_fresh_session", lambda timeout, sandbox: NoKernel())
+    monkeypatch.setattr(grading, "_fresh_session", lambda timeout, sandbox, package: NoKernel())
     monkeypatch.setattr(grading, "run_graded", lambda nb, timeout, compare, session: (grading.GRADED, passed, [], ""))
     path = tmp_path / "07_x.ipynb"
     nbformat.write(nbformat.from_dict(_release()), path)

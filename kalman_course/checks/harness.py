@@ -23,6 +23,9 @@ from kalman_course.checks.remote import LearnerFunction, LearnerNamespace, sessi
 
 SUCCESS = "{name}: passed"
 
+#: What a graded kernel's guard raises where a reference is withheld (kalman_course.core.withheld).
+WITHHELD = "ReferenceWithheld"
+
 
 class CheckFailed(AssertionError):
     """A learner's code gave a wrong answer. The message names the problem and a hint."""
@@ -206,6 +209,10 @@ def call(fn: Callable, *args, label: str | None = None):
             raise CheckFailed(f"expected a function, got {answer['not_callable']}")
         if "raised" in answer:
             raised = answer["raised"]
+            if raised.type_name == WITHHELD:
+                raise CheckFailed(f"{label} calls a reference implementation of the course. Hint: the "
+                                  f"reference is not available while grading ({raised.message}); write the "
+                                  "computation yourself")
             raise CheckFailed(f"{label} raised {raised.type_name}: {raised.message}")
         return answer["result"]
     if not callable(fn):

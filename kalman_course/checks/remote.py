@@ -70,6 +70,17 @@ class Session:
         or ``{"not_callable": type name}``."""
         return self._ask({"op": "call", "callee": callee, "args": tuple(args)})
 
+    def withheld_calls(self) -> list[tuple[str, int, str, str]]:
+        """(file of the calling code, line, function, the exercise function it stands for) of
+        each call of a reference withheld while grading (:mod:`kalman_course.core.withheld`),
+        as far as the kernel says."""
+        answer = self._ask({"op": "withheld"})
+        calls = answer.get("result")
+        if not isinstance(calls, list):
+            return []
+        return [tuple(c) for c in calls if isinstance(c, list) and len(c) == 4 and type(c[1]) is int
+                and all(isinstance(c[k], str) for k in (0, 2, 3))]
+
     def describe(self, name: str) -> dict:
         """``{"defined", "callable", "type", "globals"}`` of a name in the learner's notebook."""
         answer = self._ask({"op": "describe", "name": name})

@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import secrets
 import sys
 from pathlib import Path
 
@@ -103,14 +104,23 @@ def _cmd_grade(args: argparse.Namespace) -> int:
     sandbox = _open_sandbox(args, grading_a_class=any(learner != "-" for _, learner in submissions))
     if sandbox is False:
         return 2
+    from kalman_course.checks import cases
     from kalman_course.tooling import sealed
 
+    if args.seed is None and args.shard:
+        print(f"error: the shards of a class must draw the same check inputs: pass every shard the same "
+              f"--seed (for instance --seed {secrets.randbits(63)})", file=sys.stderr)
+        return 2
+    args.seed = secrets.randbits(63) if args.seed is None else args.seed
+    cases.set_run_seed(args.seed)  # before the preload computes the checks' cases
     sealed.preload(_checks_of(submissions, release))  # nothing is imported once a learner's kernel runs
     fingerprint = sealed.Fingerprint()
     jobs = args.jobs or os.cpu_count() or 1
     where = "in a sandbox of its own" if sandbox else "not sandboxed"
     print(f"grading {len(submissions)} notebook(s), {min(jobs, len(submissions))} at a time, "
           f"each in a kernel of its own, {where} ...", flush=True)
+    print(f"the checks' inputs are drawn from run seed {args.seed} (--seed {args.seed} draws them again)",
+          flush=True)
     try:
         with sealed.OrphanReaper():  # what a kernel left running ends before any gradebook is written
             results = grading.grade_many(submissions, release, timeout=args.timeout, jobs=jobs,
@@ -199,7 +209,7 @@ def _report(results, args, run=None, key=None) -> int:
     print(gradebook.format_summary(results))
     if run is None:
         roster = getattr(args, "roster", None) or [(r.learner, r.path) for r in results]
-        run = gradebook.run_record(roster, sandbox=getattr(args, "sandbox_text", None) or "none",
+        run = gradebook.run_record(roster, sandbox=getattr(args, "sandbox_text", None) or "none", seed=args.seed,
                                    shard=args.shard, interrupted=getattr(args, "interrupted", False))
         key = args.gradebook_key if hasattr(args, "gradebook_key") else gradebook.load_key(args.key_file)
     for line in gradebook.write_gradebooks(results, run, key, csv_path=args.csv, json_path=args.json,
@@ -238,6 +248,17 @@ def _shard(text: str) -> tuple[int, int]:
     if not 1 <= k <= n:
         raise argparse.ArgumentTypeError(f"expected K/N with 1 <= K <= N, got {text!r}")
     return k, n
+
+
+def _seed(text: str) -> int:
+    """The run seed of ``--seed``, checked."""
+    try:
+        seed = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if not 0 <= seed < 2**63:
+        raise argparse.ArgumentTypeError(f"expected an integer in [0, 2**63), got {text!r}")
+    return seed
 
 
 def _add_gradebook_options(p: argparse.ArgumentParser) -> None:
@@ -351,6 +372,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="submissions graded in parallel, each in its own kernel (default: number of cores)")
     p.add_argument("--all-hints", action="store_true",
                    help="list every failed check with its hint under the table (default: the first per notebook)")
+    p.add_argument("--seed", type=_seed, default=None, metavar="N",
+                   help="the run seed the checks draw their inputs from, recorded in the gradebook (default: "
+                        "a fresh one; pass a gradebook's seed to grade with the same inputs, and the same "
+                        "seed to every --shard of a class)")
     p.add_argument("--no-sandbox", action="store_true",
                    help="run learners' kernels without bubblewrap (not advised for a class; recorded in the gradebook)")
     p.add_argument("--shard", type=_shard, metavar="K/N",

@@ -342,7 +342,8 @@ def csv_text(results: list[NotebookResult]) -> str:
     return buffer.getvalue()
 
 
-def run_record(roster, *, sandbox: str, shard: tuple[int, int] | None = None, interrupted: bool = False) -> dict:
+def run_record(roster, *, sandbox: str, seed: int, shard: tuple[int, int] | None = None,
+               interrupted: bool = False) -> dict:
     """What a JSON gradebook says about the run that wrote it.
 
     Parameters
@@ -353,12 +354,15 @@ def run_record(roster, *, sandbox: str, shard: tuple[int, int] | None = None, in
         tell which learners each shard must hold.
     sandbox : str
         What the learners' kernels ran in, as the caller states it (``"none (--no-sandbox)"``).
+    seed : int
+        The run seed the checks drew their inputs from (:mod:`kalman_course.checks.cases`):
+        grading again with it gives every check the same inputs.
     shard : (int, int), optional
         (K, N) when the run graded shard K of N.
     interrupted : bool
         Whether the run was stopped before every notebook was graded.
     """
-    return {"sandbox": str(sandbox), "shard": f"{shard[0]}/{shard[1]}" if shard else None,
+    return {"sandbox": str(sandbox), "seed": int(seed), "shard": f"{shard[0]}/{shard[1]}" if shard else None,
             "class_size": len(roster), "class": [[str(learner), str(path)] for learner, path in roster],
             "interrupted": bool(interrupted)}
 
@@ -569,7 +573,7 @@ def _fields_problem(record, types: dict, required, optional, where: str) -> str:
 
 
 def _run_problem(run) -> str:
-    types = {"sandbox": str, "class_size": int, "class": list, "interrupted": bool}
+    types = {"sandbox": str, "seed": int, "class_size": int, "class": list, "interrupted": bool}
     if not isinstance(run, dict):
         return "run is not an object"
     problem = _fields_problem(run, types, [*types, "shard"], [], "run")

@@ -14,11 +14,15 @@ cells' own output (the learner's instant feedback in JupyterLab) is not used.
 from __future__ import annotations
 
 import ast
+import atexit
 import contextlib
 import copy
 import io
 import json
+import os
 import re
+import shutil
+import tempfile
 import threading
 import time
 import warnings
@@ -29,6 +33,7 @@ from kalman_course.tooling.cells import CHECK_OUTPUT_TAG, GRADER_TAG, grader_inf
 from kalman_course.tooling.identify import Identified, cell_metadata, cell_tags, identify_cells, same_code
 from kalman_course.tooling.notebooks import NotebookError, read_notebook
 from kalman_course.tooling.review import review_flags
+from kalman_course.tooling import withheld
 
 
 #: Statuses of a graded notebook. Only GRADED and TAMPERED_RESTORED ran to the end.
@@ -396,6 +401,7 @@ def run_graded(nb, *, timeout: float = 120.0, compare: bool = False, session=Non
                 verdict.in_kernel = (outcome.status == "ok"
                                      and outcome.stdout == _success_line(info[0]))
             verdicts[cell["id"]] = verdict
+        session.reference_calls = _withheld_calls(session, code[:last + 1])
     except KernelLost as lost:
         return lost.status, verdicts, errors, lost.detail
     finally:
@@ -405,20 +411,110 @@ def run_graded(nb, *, timeout: float = 120.0, compare: bool = False, session=Non
     return GRADED, verdicts, errors, ""
 
 
-#: A kernel started ahead for the next notebook this process grades (see :func:`grade_many`).
+def _cell_file(source: str) -> str:
+    """The file name ipykernel gives the code of a cell of ``source`` (its folder aside)."""
+    from ipykernel.compiler import get_tmp_hash_seed, murmur2_x86
+
+    return f"{murmur2_x86(source, get_tmp_hash_seed())}.py"
+
+
+def _withheld_calls(session, cells) -> list[tuple[str | None, str, str]]:
+    """(run id of the cell to blame or None, file:line, function) of each call of a withheld
+    reference the kernel recorded (a learner who silences the record gains nothing: the
+    reference still raised).
+
+    The cell to blame is the one whose code called the guard; when the grader called it
+    (the learner's function *is* the reference, under an alias), the last cell that binds
+    the exercise function's name.
+    """
+    if not callable(getattr(session, "withheld_calls", None)):
+        return []
+    by_file = {_cell_file(cell.source): cell.get("id") for cell in cells}
+    blamed = []
+    for filename, line, dotted, exercise_function in session.withheld_calls():
+        cid = by_file.get(os.path.basename(str(filename)))
+        if cid is None:
+            cid = next((cell.get("id") for cell in reversed(cells)
+                        if str(exercise_function) in _top_level_bindings(cell.source)), None)
+        blamed.append((cid, f"{filename}:{line}", dotted))
+    return blamed
+
+
+def _top_level_bindings(source: str) -> set[str]:
+    """The names a cell's code binds at its top level (def, class, assignment, import), read
+    as IPython runs it (magics turned into calls); none if it does not parse."""
+    from IPython.core.inputtransformer2 import TransformerManager
+
+    try:
+        tree = ast.parse(TransformerManager().transform_cell(source))
+    except (SyntaxError, ValueError):
+        return set()
+    names = set()
+    for node in tree.body:
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            names.add(node.name)
+        elif isinstance(node, (ast.Import, ast.ImportFrom)):
+            names.update((alias.asname or alias.name).split(".")[0] for alias in node.names)
+        elif isinstance(node, (ast.Assign, ast.AnnAssign, ast.AugAssign, ast.For, ast.With)):
+            names.update(n.id for n in ast.walk(node) if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Store))
+    return names
+
+
+#: A kernel started ahead for the next notebook this process grades, and whether to start
+#: one (in :func:`grade_many`'s workers).
 _spare_session = None
+_start_ahead = False
 
 
-def _fresh_session(timeout: float, sandbox=None):
-    """A new kernel for one notebook: the one started ahead, if any (and then start the next)."""
+def _fresh_session(timeout: float, sandbox=None, package: str | None = None):
+    """A new kernel for one notebook: the one started ahead, if it runs on ``package``, and
+    then start the next."""
     from kalman_course.tooling.kernel_session import KernelSession
 
     global _spare_session
-    session = _spare_session or KernelSession(timeout, sandbox)
+    if _spare_session is not None and _spare_session.package != package:
+        _close_spare_session()
+    session = _spare_session or KernelSession(timeout, sandbox, package)
     session.timeout = float(timeout)
-    if _spare_session is not None:
-        _spare_session = KernelSession(timeout, sandbox)
+    _spare_session = KernelSession(timeout, sandbox, package) if _start_ahead else None
     return session
+
+
+#: The guarded builds of this run (chapter → package folder) and the folder that holds them.
+_GUARDED: dict[str, str] = {}
+_GUARDED_ROOT: list[str] = []
+
+
+def _guarded_root() -> str:
+    """The folder of this run's guarded builds, made once (before any worker forks) and
+    removed when the process that made it ends."""
+    if not _GUARDED_ROOT:
+        root = tempfile.mkdtemp(prefix="kalman-guarded-")
+        os.chmod(root, 0o755)  # a kernel of its own user id reads its build through it
+        owner = os.getpid()
+        atexit.register(lambda: os.getpid() == owner and shutil.rmtree(root, ignore_errors=True))
+        _GUARDED_ROOT.append(root)
+    return _GUARDED_ROOT[0]
+
+
+def guarded_package(chapter: str, release_notebook) -> str:
+    """The package folder a kernel grading ``chapter`` imports: the chapter's references
+    withheld (:mod:`kalman_course.tooling.withheld`), built once per run and chapter."""
+    if chapter in _GUARDED:
+        return _GUARDED[chapter]
+    folder = Path(_guarded_root()) / chapter
+    if not folder.exists():
+        checks = [info[0] for cell in release_notebook.cells if (info := grader_info(cell))]
+        functions = withheld.withheld_functions(withheld.functions_to_write(release_notebook), checks)
+        staging = Path(tempfile.mkdtemp(dir=folder.parent, prefix=f".{chapter}-"))
+        withheld.build_guarded(staging, functions, chapter)
+        os.chmod(staging, 0o755)
+        try:
+            os.rename(staging, folder)
+        except OSError:  # another worker of this run built it first
+            shutil.rmtree(staging, ignore_errors=True)
+    _GUARDED[chapter] = str(folder / withheld.PACKAGE.name)
+    return _GUARDED[chapter]
 
 
 def _close_spare_session() -> None:
@@ -499,7 +595,10 @@ def grade_submission(submission, release: dict, result: NotebookResult, *, timeo
         return result
     ref = release[result.chapter]
     cells = identify_cells(submission, ref)  # before the kernel starts: nothing to clean up if it fails
-    session = _fresh_session(timeout, sandbox)  # the kernel starts while the notebook is restored and reviewed
+    # a compared run also runs the grader cells in the kernel, which need the references
+    package = None if compare else guarded_package(result.chapter, ref)
+    # the kernel starts while the notebook is restored and reviewed
+    session = _fresh_session(timeout, sandbox, package)
     session.show_notebooks({f"release_{result.chapter}.ipynb": json.dumps(ref),
                             Path(result.path).name: json.dumps(submission)})
     nb, result.tampered, result.readded = restore_graders(submission, ref, cells)
@@ -516,6 +615,11 @@ def grade_submission(submission, release: dict, result: NotebookResult, *, timeo
     labels = cells.label_of_run_id()
     result.learner_errors = [f"{labels.get(cid, f'cell {cid}')}: {error}" for cid, error in errors
                              if cid not in graders]
+    calls = getattr(session, "reference_calls", None)
+    for cid, where, dotted in dict.fromkeys(calls if isinstance(calls, list) else ()):
+        place = labels.get(cid, f"cell {cid}") if cid is not None else f"code outside the notebook's cells ({where})"
+        result.flags.append(f"{place}: calls {dotted}, the course's own version of a function the exercise "
+                            "asks for (withheld while grading)")
     for cell in ref.cells:
         info = grader_info(cell)
         if not info:
@@ -600,6 +704,7 @@ def grade_many(submissions: list[tuple], release: dict, *, timeout: float = 120.
 
             from kalman_course.tooling.kernel_session import close_every_session
 
+            _guarded_root()  # one folder of guarded builds for every worker
             with WorkerPool(min(jobs, len(items)), _grade_one, lambda: _worker_start(sandbox),
                             close_every_session) as pool:
                 for done, (i, result) in enumerate(pool.map(items, died=_worker_died), 1):
@@ -610,12 +715,12 @@ def grade_many(submissions: list[tuple], release: dict, *, timeout: float = 120.
 
 
 def _worker_start(sandbox) -> None:
-    """Worker set-up of :func:`grade_many`: start a kernel ahead, in the run's sandbox."""
-    global _spare_session
-    from kalman_course.tooling.kernel_session import KernelSession
-
+    """Worker set-up of :func:`grade_many`: the checks imported (the first notebook's kernel
+    starts when its chapter is known: it runs on that chapter's guarded build; the next one
+    is started ahead)."""
+    global _start_ahead
     registered_checks()
-    _spare_session = KernelSession(120.0, sandbox)
+    _start_ahead = True
 
 
 def _worker_died(item, why: str) -> NotebookResult:

@@ -100,9 +100,14 @@ class KernelSession(Session):
     ----------
     timeout : float
         Seconds each cell (and each check, over all its calls) may take.
+    sandbox : kalman_course.tooling.sandbox.Sandbox, optional
+        Where the kernel runs (None: as a plain process).
+    package : str, optional
+        A build of the package the kernel imports instead of the package itself
+        (:func:`kalman_course.tooling.withheld.build_guarded`).
     """
 
-    def __init__(self, timeout: float, sandbox=None):
+    def __init__(self, timeout: float, sandbox=None, package: str | None = None):
         super().__init__()
         self.timeout = float(timeout)
         self.deadline = None  # set by the grader for the check that is running
@@ -119,10 +124,14 @@ class KernelSession(Session):
         env["PYDEVD_DISABLE_FILE_VALIDATION"] = "1"  # no debugger warning on stderr
         env["IPYTHONDIR"] = os.path.join(self.folder, ".ipython")  # a profile of its own: no shared start-up files
         argv, interrupt_mode = _KERNEL_ARGV, "signal"
+        self.package = package
+        if package is not None:  # first on the path: before the installed package
+            env["PYTHONPATH"] = os.pathsep.join(filter(None, [os.path.dirname(package), env.get("PYTHONPATH")]))
         self._sandboxed = None
         if sandbox is not None:
             self._sandboxed = sandbox.prepare(_KERNEL_ARGV, channels=channels, files={"notebooks": self.files},
-                                              env={"MPLBACKEND": "Agg", "PYDEVD_DISABLE_FILE_VALIDATION": "1"})
+                                              env={"MPLBACKEND": "Agg", "PYDEVD_DISABLE_FILE_VALIDATION": "1"},
+                                              package=package)
             argv = self._sandboxed.argv
             interrupt_mode = "message"  # a signal would reach bubblewrap, not the kernel inside
             env = {"PATH": os.environ.get("PATH", "/usr/bin:/bin")}  # bubblewrap sets the kernel's own

@@ -297,7 +297,7 @@ class Sandbox:
         return f"{self.version} ({self.limits.describe()})"
 
     def prepare(self, kernel_argv: list[str], *, channels: str, files: dict[str, str],
-                env: dict[str, str]) -> PreparedKernel:
+                env: dict[str, str], package: str | None = None) -> PreparedKernel:
         """The command that runs ``kernel_argv`` in a new sandbox.
 
         Parameters
@@ -311,10 +311,14 @@ class Sandbox:
             Folders to show read-only in the kernel's HOME: name there → path here.
         env : dict
             Environment variables the kernel needs beyond the sandbox's own.
+        package : str, optional
+            A build of the package shown where the package is instead of the package itself
+            (:mod:`kalman_course.tooling.withheld`: the chapter's references withheld).
         """
         as_root = os.geteuid() == 0
         uid = _unprivileged_uid() if as_root else os.geteuid()
-        read_only = [(root, root) for root in [*_python_roots(), _package_dir()]]
+        # the package after the Python installation: it hides an installed copy of itself there
+        read_only = [(root, root) for root in _python_roots()] + [(package or _package_dir(), _package_dir())]
         read_only += [(path, f"{SANDBOX_HOME}/{name}") for name, path in sorted(files.items())]
         read_only += _matplotlib_font_cache()
         staged = []
