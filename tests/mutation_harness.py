@@ -22,7 +22,9 @@ import ast
 import contextlib
 import functools
 import importlib.util
+import inspect
 import io
+import pkgutil
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,7 +36,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import nbformat  # noqa: E402
 
 from kalman_course import checks  # noqa: E402
+from kalman_course.checks import cases  # noqa: E402
 from kalman_course.checks.remote import LearnerFunction, LocalSession  # noqa: E402
+from kalman_course.tooling import withheld  # noqa: E402
+from kalman_course.tooling.cells import grader_info  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 SOLUTIONS = ROOT / "solutions"
@@ -147,12 +152,48 @@ class Solution:
         argument = call[call.index("(") + 1:call.rindex(")")]
         in_kernel = _verdict(getattr(checks, edit.check), eval(argument, namespace))
         # the same check as `kalman-course grade` runs it: here, on the learner's functions
-        # reached through the plain-data protocol (its "kernel" is this namespace)
-        from_outside = _verdict(getattr(checks, edit.check), LearnerFunction(LocalSession(namespace), argument))
+        # reached through the plain-data protocol (its "kernel" is this namespace), and under a
+        # run seed with the chapter's references withheld while they run
+        session = GuardedSession(namespace, self.path.stem) if cases.drawing() else LocalSession(namespace)
+        from_outside = _verdict(getattr(checks, edit.check), LearnerFunction(session, argument))
         if from_outside != in_kernel:
             raise AssertionError(f"{edit.check} judges {edit.mistake or edit.reason!r} differently from outside "
                                  f"the kernel: inside {in_kernel}, outside {from_outside}")
         return in_kernel
+
+
+@functools.cache
+def withheld_in(stem: str) -> tuple:
+    """The package functions a graded kernel of chapter ``stem`` lacks (its guarded build)."""
+    release = nbformat.read(ROOT / "exercises" / f"{stem}.ipynb", as_version=4)
+    names = [info[0] for cell in release.cells if (info := grader_info(cell))]
+    dotted = withheld.withheld_functions(withheld.functions_to_write(release), names)
+    return tuple(pkgutil.resolve_name("{}:{}".format(*name.rsplit(".", 1))) for name in sorted(dotted))
+
+
+def _guard(*args, **kwargs):
+    raise __import__("kalman_course.core.withheld", fromlist=["_"]).ReferenceWithheld(
+        "a reference of the course is not available while grading")
+
+
+class GuardedSession(LocalSession):
+    """The learner's "kernel" in this process as a graded run has it: while a learner function
+    runs, every function the chapter's guarded build withholds raises (its code swapped for a
+    guard's, so that aliases and earlier imports reach the guard too)."""
+
+    def __init__(self, namespace: dict, stem: str):
+        super().__init__(namespace)
+        self.targets = [inspect.unwrap(fn) for fn in withheld_in(stem)]
+
+    def exchange(self, request: str) -> str:
+        saved = [(fn, fn.__code__) for fn in self.targets]
+        try:
+            for fn, _ in saved:
+                fn.__code__ = _guard.__code__
+            return super().exchange(request)
+        finally:
+            for fn, code in saved:
+                fn.__code__ = code
 
 
 def _verdict(check, learner_object) -> Outcome:

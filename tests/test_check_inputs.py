@@ -13,12 +13,16 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import io
+import json
 
+import nbformat
 import pytest
 
 from kalman_course import checks
 from kalman_course.checks import cases
 from kalman_course.checks.remote import LearnerFunction, LocalSession
+from kalman_course.tooling import withheld
+from conftest import ROOT
 from mutation_harness import catalogues, solution
 
 SEEDS = (20261202, 99)
@@ -33,14 +37,27 @@ class RecordingSession(LocalSession):
     def __init__(self, namespace: dict):
         super().__init__(namespace)
         self.calls: list[str] = []
+        self.functions: set[str] = set()  # the package functions sent by name
 
     def exchange(self, request: str) -> str:
         if '["op","call"]' in request:
             self.calls.append(hashlib.sha256(request.encode()).hexdigest())
+        self.functions.update(_function_refs(json.loads(request)))
         return super().exchange(request)
 
 
-def _requests(notebook: str, check_name: str, seed) -> list[str]:
+def _function_refs(value):
+    if isinstance(value, dict):
+        if value.get("~") == "function":
+            yield value.get("ref")
+        for item in value.values():
+            yield from _function_refs(item)
+    elif isinstance(value, list):
+        for item in value:
+            yield from _function_refs(item)
+
+
+def _session(notebook: str, check_name: str, seed) -> RecordingSession:
     cases.set_run_seed(seed)
     sol = solution(notebook)
     call = sol.grader_call[check_name]
@@ -54,7 +71,11 @@ def _requests(notebook: str, check_name: str, seed) -> list[str]:
     finally:
         cases.set_run_seed(None)
     assert session.calls, f"{check_name} never called the learner's function"
-    return session.calls
+    return session
+
+
+def _requests(notebook: str, check_name: str, seed) -> list[str]:
+    return _session(notebook, check_name, seed).calls
 
 
 @pytest.mark.parametrize("notebook, check_name", GRADED, ids=[f"{nb}-{c}" for nb, c in GRADED])
@@ -67,6 +88,18 @@ def test_a_run_seed_draws_inputs_no_fixed_case_has(notebook, check_name):
     shared = set(fixed) & set(drawn)
     assert not shared, (f"{check_name}: {len(shared)} of its {len(drawn)} calls under a run seed carry a "
                         "fixed case's arguments (a lookup table would know them)")
+
+
+@pytest.mark.parametrize("notebook, check_name", GRADED, ids=[f"{nb}-{c}" for nb, c in GRADED])
+def test_a_graded_run_sends_no_function_its_kernel_lacks(notebook, check_name):
+    """A graded kernel runs on the chapter's guarded build: no kalman_course.checks (but the
+    agent), and no reference of what the chapter's learner writes."""
+    release = nbformat.read(ROOT / "exercises" / f"{notebook}.ipynb", as_version=4)
+    guarded = withheld.withheld_functions(withheld.functions_to_write(release), list(solution(notebook).grader_call))
+    sent = _session(notebook, check_name, SEEDS[0]).functions
+    missing = sorted(ref for ref in sent if ref.startswith("kalman_course.checks.")
+                     or ref.replace(":", ".") in guarded)
+    assert not missing, f"{check_name} sends functions a graded kernel does not have: {missing}"
 
 
 def test_run_seed_is_validated():

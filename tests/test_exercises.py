@@ -15,6 +15,7 @@ import shutil
 import nbformat
 import pytest
 
+from kalman_course.checks import cases
 from kalman_course.tooling import authoring, cli, grading
 
 from conftest import ROOT
@@ -88,6 +89,34 @@ def test_solution_passes_every_grader(outcomes, path):
     cells = _outcome(outcomes, ("solution", path.name, None))
     for check, cid in _graders(nbformat.read(path, as_version=4)).items():
         assert cells.get(cid) is True, f"the solution fails grader {check}"
+
+
+#: The run seed of the guarded grading of the solutions (any seed: the checks draw anew).
+GUARDED_SEED = 20261202
+
+
+@pytest.fixture(scope="module")
+def guarded_outcomes():
+    """Every solution graded as an instructor's run grades it: on its chapter's guarded build
+    of the package (the reference withheld), on inputs drawn from a run seed."""
+    release = grading.load_release(ROOT / "exercises")
+    submissions = [((path.name, nbformat.read(path, as_version=4)), "-") for path in SOLUTIONS]
+    cases.set_run_seed(GUARDED_SEED)
+    try:
+        results = grading.grade_many(submissions, release, timeout=120, jobs=2)
+    finally:
+        cases.set_run_seed(None)
+    return {path.name: result for path, result in zip(SOLUTIONS, results)}
+
+
+@pytest.mark.parametrize("path", SOLUTIONS, ids=lambda p: p.stem)
+def test_solution_earns_every_point_with_the_reference_withheld(guarded_outcomes, path):
+    result = guarded_outcomes[path.name]
+    assert result.status in grading.RAN_TO_THE_END, result.detail
+    lost = [(c.check, c.message) for c in result.checks if c.points < c.possible]
+    assert not lost, f"the solution loses points on the guarded build under run seed {GUARDED_SEED}: {lost}"
+    assert not result.learner_errors, result.learner_errors
+    assert not [flag for flag in result.flags if "withheld" in flag], result.flags
 
 
 @pytest.mark.parametrize("path", SOLUTIONS, ids=lambda p: p.stem)

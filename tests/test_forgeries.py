@@ -34,7 +34,7 @@ from nbformat.v4 import new_code_cell, new_output
 
 from kalman_course.tooling import authoring, cli
 
-from conftest import ROOT, dedented as _code
+from conftest import ROOT, dedented as _code, first_line
 from notebook_editors import classic, colab_no_tags
 
 pytestmark = pytest.mark.slow
@@ -764,7 +764,8 @@ def _name(forgery: Forgery) -> str:
     if not others:
         return f"cell {forgery.cell}"
     cells_word = "cells" if len(others) > 1 else "cell"
-    return f"cell {place + 1} (id {forgery.cell}, also used by {cells_word} {', '.join(others)})"
+    return (f"cell {place + 1} (id {forgery.cell}, also used by {cells_word} {', '.join(others)}"
+            f"{first_line(forgery.source)})")
 
 
 def _names_cell(flag: str, name: str) -> bool:

@@ -16,12 +16,13 @@ import json
 
 import pytest
 
+from kalman_course.tooling.cells import BEGIN_RE, END_RE, STUB_RE
 from kalman_course.tooling import grading
 from kalman_course.tooling.identify import identify_cells
 from kalman_course.tooling.notebooks import read_notebook
 from kalman_course.tooling.review import review_flags
 
-from conftest import ROOT
+from conftest import ROOT, first_line
 from notebook_editors import EDITORS, classic, colab_no_tags, own_id
 
 CHAPTERS = sorted(p.name for p in (ROOT / "exercises").glob("[0-9]*.ipynb"))
@@ -44,7 +45,16 @@ def _released(chapter: str):
 
 @functools.lru_cache(maxsize=None)
 def _text(folder: str, chapter: str) -> str:
-    return (ROOT / folder / chapter).read_text(encoding="utf-8")
+    """The file as JupyterLab saved it; from ``solutions``, as a learner who solved the exercise
+    saves it (the solution's region markers gone: they would flag it as a copy)."""
+    text = (ROOT / folder / chapter).read_text(encoding="utf-8")
+    if folder != "solutions":
+        return text
+    nb = json.loads(text)
+    for cell in nb["cells"]:
+        cell["source"] = [line for line in cell["source"]
+                          if not any(r.match(line.rstrip("\n")) for r in (BEGIN_RE, STUB_RE, END_RE))]
+    return json.dumps(nb, indent=1, ensure_ascii=False) + "\n"
 
 
 def _json(folder: str, chapter: str) -> dict:
@@ -139,7 +149,7 @@ def _label_in(saved: dict, index: int) -> str:
     """How a cell of a saved notebook is named: by its id (``id`` or Colab's), else its place."""
     cell = saved["cells"][index]
     cid = cell.get("id", cell["metadata"].get("id"))
-    return f"cell {cid}" if cid else f"cell {index + 1} (no id)"
+    return f"cell {cid}" if cid else f"cell {index + 1} (no id{first_line(''.join(cell['source']))})"
 
 
 @pytest.mark.parametrize("editor", sorted(EDITORS))
@@ -195,7 +205,8 @@ def test_a_flat_layout_notebook_without_ids_or_metadata_is_graded_with_errors_na
     result = grading.grade_notebook(path, _release(), learner="alice")
     assert (result.chapter, result.status, result.points, result.possible) == ("01", grading.GRADED, 8, 8)
     assert (result.tampered, result.readded, result.flags) == ([], [], [])
-    assert result.learner_errors == [f"cell {update + 1} (invalid id): NameError: oops"]
+    note = first_line("".join(nb["cells"][update]["source"]))
+    assert result.learner_errors == [f"cell {update + 1} (invalid id{note}): NameError: oops"]
 
 
 # ---------------------------------------------------------------------------------------
@@ -219,7 +230,7 @@ def test_a_learner_cell_with_a_grader_s_id_is_a_learner_cell_reviewed_and_report
     real = real + 1 if where == "before" else real
     submission = _jupyterlab(tmp_path, nb, CH03)
     restored, tampered, readded = grading.restore_graders(submission, _released(CH03))
-    label = f"cell {forged + 1} (id grader-kf_update, also used by cell {real + 1})"
+    label = f"cell {forged + 1} (id grader-kf_update, also used by cell {real + 1}{first_line(FORGED)})"
     expected = [f"{label}: a learner cell carried the id of grader cell grader-kf_update "
                 "(it ran and was reviewed as a learner cell)"]
     if with_tags:
@@ -236,7 +247,7 @@ def test_a_reused_learner_cell_id_never_points_a_flag_at_the_honest_cell(tmp_pat
     update = _index(nb, "update")
     nb["cells"].insert(update, _code_cell(FORGED, "update"))
     flags = review_flags(_jupyterlab(tmp_path, nb, CH03), _released(CH03))
-    assert flags == [f"cell {update + 1} (id update, also used by cell {update + 2}): {IMPORTS}"]
+    assert flags == [f"cell {update + 1} (id update, also used by cell {update + 2}{first_line(FORGED)}): {IMPORTS}"]
 
 
 @pytest.mark.parametrize("bad", [[1, 2], 7, 3.5, "", None, "has space", "x" * 65, {"id": "grader-kf_update"}, "gone"])
@@ -255,7 +266,7 @@ def test_malformed_ids_never_crash_grading_nor_change_it(tmp_path, bad):
     update = next(i for i, c in enumerate(submission.cells) if c.source.startswith("def kf_update"))
     submission.cells[update].source = FORGED
     what = "no id" if bad in ("", None, "gone") else "invalid id"
-    assert review_flags(submission, _released(CH03)) == [f"cell {update + 1} ({what}): {IMPORTS}"]
+    assert review_flags(submission, _released(CH03)) == [f"cell {update + 1} ({what}{first_line(FORGED)}): {IMPORTS}"]
 
 
 def test_ids_shared_by_many_cells_name_every_other_place(tmp_path):
@@ -264,9 +275,10 @@ def test_ids_shared_by_many_cells_name_every_other_place(tmp_path):
         nb["cells"][_index(nb, cid)]["id"] = "same"
     submission = _read(tmp_path, json.dumps(nb), CH03)
     labels = identify_cells(submission, _released(CH03)).labels
-    assert [labels[i] for i in (3, 6, 9)] == ["cell 4 (id same, also used by cells 7, 10)",
-                                              "cell 7 (id same, also used by cells 4, 10)",
-                                              "cell 10 (id same, also used by cells 4, 7)"]
+    notes = [first_line(submission.cells[i].source) for i in (3, 6, 9)]
+    assert [labels[i] for i in (3, 6, 9)] == [f"cell 4 (id same, also used by cells 7, 10{notes[0]})",
+                                              f"cell 7 (id same, also used by cells 4, 10{notes[1]})",
+                                              f"cell 10 (id same, also used by cells 4, 7{notes[2]})"]
     assert _graded_form(submission, CH03)[1:] == ([], [], [])
 
 
@@ -285,7 +297,8 @@ def test_an_edited_grader_without_an_id_is_found_by_its_tags_and_reported(tmp_pa
         cells[grader]["source"] = 'print("kf_predict: passed")'
     nb = _read(tmp_path, json.dumps(_no_ids(edit=edit)), CH03)
     cells, tampered, readded, flags = _graded_form(nb, CH03)
-    assert tampered == [f"cell {grader + 1} (no id), grader cell grader-kf_predict: source edited"]
+    note = first_line('print("kf_predict: passed")')
+    assert tampered == [f"cell {grader + 1} (no id{note}), grader cell grader-kf_predict: source edited"]
     assert (readded, flags) == ([], [])
     assert cells == _graded_form(_read(tmp_path, _text("solutions", CH03), "lab.ipynb"), CH03)[0]
 
@@ -315,7 +328,8 @@ def test_json_edits_of_a_grader_without_an_id_are_reported(tmp_path, change, rep
         if cells[grader]["cell_type"] == "markdown":
             del cells[grader]["outputs"], cells[grader]["execution_count"]
     cells, tampered, readded, _ = _graded_form(_read(tmp_path, json.dumps(_no_ids(edit=edit)), CH03), CH03)
-    assert (tampered, readded) == ([f"cell {grader + 1} (no id), grader cell grader-kf_gain: {report}"], [])
+    note = first_line("checks.kf_gain(kf_gain)")
+    assert (tampered, readded) == ([f"cell {grader + 1} (no id{note}), grader cell grader-kf_gain: {report}"], [])
     assert cells[grader] == ("code", "checks.kf_gain(kf_gain)", True)
 
 
@@ -333,7 +347,8 @@ def test_a_copy_of_a_grader_elsewhere_is_a_learner_cell_and_the_real_one_is_the_
     expected = _graded_form(_read(tmp_path, json.dumps(plain), CH03), CH03)[0]
     expected.insert(copy_at, ("code", "checks.kf_predict(kf_predict)", False))
     assert cells == expected
-    assert tampered == [f"cell {copy_at + 1} (no id): a learner cell carried grader tags grader, "
+    assert tampered == [f"cell {copy_at + 1} (no id{first_line('checks.kf_predict(kf_predict)')}): "
+                        "a learner cell carried grader tags grader, "
                         "nbval-check-output (removed)"]
     assert (readded, flags) == ([], [])
 

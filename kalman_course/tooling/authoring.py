@@ -29,14 +29,13 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from kalman_course.tooling.cells import (CHECK_OUTPUT_TAG, FIX_THIS, GRADER_TAG,  # noqa: F401 (re-exported)
-                                         IGNORE_OUTPUT_TAG, AuthoringError, grader_info, is_challenge)
+from kalman_course.tooling.cells import (BEGIN_RE, CHECK_OUTPUT_TAG, END_RE,  # noqa: F401 (re-exported)
+                                         FIX_THIS, GRADER_TAG, IGNORE_OUTPUT_TAG, STUB_RE, AuthoringError,
+                                         grader_info, is_challenge)
 from kalman_course.tooling.notebooks import normalise, notebook_text
+from kalman_course.tooling.copied import solution_digests
 from kalman_course.tooling.review import solution_course_calls
 
-BEGIN_RE = re.compile(r"^(?P<indent>[ \t]*)# BEGIN SOLUTION (?P<check>[A-Za-z_][\w]*)[ \t]*$")
-STUB_RE = re.compile(r"^[ \t]*# STUB[ \t]*$")
-END_RE = re.compile(r"^[ \t]*# END SOLUTION[ \t]*$")
 
 
 @dataclass(frozen=True)
@@ -236,6 +235,8 @@ def build_exercise(solution_path: str | Path):
         # what a correct version of each function to write calls of the course's code: the
         # review's baseline (a learner calling anything else of it is worth a look)
         "course_calls": solution_course_calls(nb, ex),
+        # what a copy of the solution would hold, line by line (the review needs no solutions/)
+        "solution_digests": solution_digests(stubs, ex, chapter_of(solution_path)),
         "generated": "by `kalman-course build`; edit the solution, not this file",
     }
     return normalise(ex)

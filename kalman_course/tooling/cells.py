@@ -6,8 +6,15 @@ imports another for a constant).
 
 from __future__ import annotations
 
+import re
+
 #: The comment that ends every stub line a learner must fix.
 FIX_THIS = "# fix this"
+
+#: The lines that mark a fix region of a solution (never in an exercise: a copy carries them).
+BEGIN_RE = re.compile(r"^(?P<indent>[ \t]*)# BEGIN SOLUTION (?P<check>[A-Za-z_][\w]*)[ \t]*$")
+STUB_RE = re.compile(r"^[ \t]*# STUB[ \t]*$")
+END_RE = re.compile(r"^[ \t]*# END SOLUTION[ \t]*$")
 
 GRADER_TAG = "grader"
 CHECK_OUTPUT_TAG = "nbval-check-output"

@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from kalman_course.tooling.cells import CHECK_OUTPUT_TAG, GRADER_TAG, grader_info, is_challenge
+from kalman_course.tooling.copied import copy_flags
 from kalman_course.tooling.identify import Identified, cell_metadata, cell_tags, identify_cells, same_code
 from kalman_course.tooling.notebooks import NotebookError, read_notebook
 from kalman_course.tooling.review import review_flags
@@ -604,7 +605,7 @@ def grade_submission(submission, release: dict, result: NotebookResult, *, timeo
     nb, result.tampered, result.readded = restore_graders(submission, ref, cells)
     try:
         # the submission as written: the review names its cells by their places in the learner's file
-        result.flags = review_flags(submission, ref)
+        result.flags = review_flags(submission, ref) + copy_flags(submission, ref, cells)
     except Exception as exc:  # the review is advice: it must never cost a grade
         result.flags = [f"the code review failed ({type(exc).__name__}); read the notebook by hand"]
     result.status, verdicts, errors, result.detail = run_graded(nb, timeout=timeout, compare=compare,

@@ -23,8 +23,9 @@ when it can be:
   the two notebooks on their cells' sources), which the review compares it with.
 
 People read cells by name: a cell is named by its id when that is valid and unique in the
-notebook (``cell update``), else by its place in the file, every cell counted from 1
-(``cell 7 (no id)``, ``cell 7 (invalid id)``, ``cell 7 (id update, also used by cell 12)``).
+notebook (``cell update``), else by its place in the file, every cell counted from 1, and
+its first line (``cell 7 (no id; first line "def kf_update(...):")``, ``cell 7 (invalid id;
+...)``, ``cell 7 (id update, also used by cell 12; first line "...")``).
 """
 
 from __future__ import annotations
@@ -227,6 +228,18 @@ def _find_graders(n_cells: int, release, originals: dict[int, int], candidates: 
     return found
 
 
+#: Characters of a cell's first line that its label quotes.
+_QUOTED = 40
+
+
+def _first_line(cell) -> str:
+    """``; first line "..."``: what finds a cell that its id cannot (none for an empty cell)."""
+    line = next((line.strip() for line in _code_lines(_source(cell)) if line.strip()), "")
+    if not line:
+        return "; empty"
+    return f'; first line "{line if len(line) <= _QUOTED else line[:_QUOTED - 1] + "…"}"'
+
+
 def _labels(cells, ids) -> list[str]:
     where: dict[str, list[int]] = {}
     for i, cid in enumerate(ids):
@@ -239,10 +252,11 @@ def _labels(cells, ids) -> list[str]:
         elif cid is not None:
             others = [str(j + 1) for j in where[cid] if j != i]
             labels.append(f"cell {i + 1} (id {cid}, also used by cell{'s' if len(others) > 1 else ''} "
-                          f"{', '.join(others)})")
+                          f"{', '.join(others)}{_first_line(cells[i])})")
         else:
             raw = _raw_id(cells[i])
-            labels.append(f"cell {i + 1} ({'no id' if raw is None or raw == '' else 'invalid id'})")
+            labels.append(f"cell {i + 1} ({'no id' if raw is None or raw == '' else 'invalid id'}"
+                          f"{_first_line(cells[i])})")
     return labels
 
 
