@@ -12,6 +12,18 @@ order 1, so any correct formulation (a loop, ``einsum``, the log domain, the evi
 dot product) agrees with the reference to ~1e-15; the default ``rtol=1e-7, atol=1e-9`` of
 :func:`expect_close` leaves eight orders of margin on that side, while every listed mistake
 differs from the reference by more than 1e-3 on some case.
+
+Under a graded run's seed (:mod:`kalman_course.checks.cases`) every family is drawn anew: the
+likelihood's maps (two lengths, never 20, so that the global ``CORRIDOR`` still shows by its
+length; the short one with more doors than walls) and its p_correct values (one above 0.8, one
+in 0.56–0.7, never 0.5); the update's map, door likelihood, peaked priors, large random
+likelihoods and ruled-out cells, at other lengths; the prediction's circular models (a forward
+one, one that also steps back and jumps) on another corridor length and a column-stochastic
+matrix of another size, each redrawn until it is well conditioned; the recursion's runs (the
+corridor from a uniform belief, and another 20-cell map from a peaked one) with other seeds,
+lengths, p_correct values and motion models, redrawn until every listed mistake is off by more
+than 1e-3; and the motion models' corridor lengths, offsets and probabilities, the last with
+three offsets equal modulo n.
 """
 
 from __future__ import annotations
@@ -21,6 +33,7 @@ import functools
 import numpy as np
 
 from kalman_course.filters import bayes
+from kalman_course.checks import cases as inputs  # `cases` names the lists of cases below
 from kalman_course.checks.harness import CheckFailed, as_array, call, check, expect_close, expect_shape
 
 #: The corridor of chapter 01: 1 where a cell has a door, 0 where it is wall.
@@ -40,8 +53,9 @@ def door_likelihood(world, z, p_correct):
 
 
 def _beliefs(n: int, seed: int, count: int) -> list[np.ndarray]:
-    """Random, peaked probability vectors (a few cells carry most of the mass)."""
-    rng = np.random.default_rng(seed)
+    """Random, peaked probability vectors (a few cells carry most of the mass); drawn anew
+    under a run seed (``seed`` keeps the call sites' streams apart)."""
+    rng = inputs.rng("bayes.beliefs", seed)
     return [bayes.normalise(rng.gamma(0.5, size=n) + 1e-3) for _ in range(count)]
 
 
@@ -70,6 +84,52 @@ def _expect(value, expected, what: str, mistakes, hint: str, **tolerances) -> np
 
 
 # ---------------------------------------------------------------------------------------
+# drawing cases under a run seed
+# ---------------------------------------------------------------------------------------
+
+def _drawn_world(rng: np.random.Generator, n: int, more_doors: bool = False) -> np.ndarray:
+    """A drawn n-cell map with at least two doors and two walls (so that z = 0 and z = 1 give
+    different likelihoods), with more doors than walls if ``more_doors``."""
+    while True:
+        world = (rng.random(n) < rng.uniform(0.55, 0.8) if more_doors
+                 else rng.random(n) < rng.uniform(0.3, 0.6)).astype(int)
+        doors = int(world.sum())
+        if 2 <= doors <= n - 2 and (doors > n - doors or not more_doors):
+            return world
+
+
+def _drawn_p(rng: np.random.Generator, low: float, high: float) -> float:
+    """A drawn p_correct, rounded to three decimals so that a message quotes it exactly."""
+    return round(float(rng.uniform(low, high)), 3)
+
+
+def _drawn_length(rng: np.random.Generator, low: int, high: int, avoid=()) -> int:
+    """A drawn number of cells in [low, high], none of ``avoid``."""
+    while True:
+        n = int(rng.integers(low, high + 1))
+        if n not in avoid:
+            return n
+
+
+def _drawn_step_probs(rng: np.random.Generator, offsets) -> dict:
+    """{offset: probability} over ``offsets``, each probability at least 0.05 and below 0.85
+    (a near-certain step makes the model nearly a shift, and a shift of the belief nearly
+    right), in thousandths so that a message quotes them exactly; plain Python numbers (they
+    are printed in messages)."""
+    while True:
+        thousandths = rng.multinomial(1000, rng.dirichlet(np.full(len(offsets), 2.0)))
+        if thousandths.min() >= 50 and thousandths.max() < 850:
+            return {int(o): int(k) / 1000 for o, k in zip(offsets, thousandths)}
+
+
+def _differs(want: np.ndarray, wrong, margin: float = 1e-3) -> bool:
+    """Whether a listed mistake's value is off the reference by more than ``margin`` somewhere
+    (a drawn case where a mistake agrees with the reference is redrawn)."""
+    wrong = np.asarray(wrong, dtype=float)
+    return wrong.shape != want.shape or not np.allclose(wrong, want, rtol=0.0, atol=margin)
+
+
+# ---------------------------------------------------------------------------------------
 # the sensor model
 # ---------------------------------------------------------------------------------------
 
@@ -79,32 +139,59 @@ _LIKELIHOOD_CASES = ((CORRIDOR, 0.9), (CORRIDOR, 0.65), (SHORT_WORLD, 0.8))
 
 
 @functools.cache
+def _likelihood_cases():
+    """The (world, p_correct) pairs of the likelihood check: :data:`_LIKELIHOOD_CASES`, or
+    drawn under a run seed in their roles (one map for the first two, with a p_correct above
+    0.8 and one in 0.56–0.7; a shorter map with more doors than walls). No drawn map has 20
+    cells: a likelihood built on the global CORRIDOR then shows by its length."""
+    def draw(rng):
+        n = _drawn_length(rng, 12, 40, avoid={len(CORRIDOR)})
+        short = _drawn_length(rng, 5, 17, avoid={n, len(CORRIDOR)})
+        world = _drawn_world(rng, n)
+        return ((world, _drawn_p(rng, 0.8, 0.97)), (world, _drawn_p(rng, 0.56, 0.7)),
+                (_drawn_world(rng, short, more_doors=True), _drawn_p(rng, 0.6, 0.95)))
+    return inputs.fixed_or_drawn(_LIKELIHOOD_CASES, draw, "bayes.likelihood")
+
+
+@functools.cache
 def _door(k: int, z: int) -> np.ndarray:
-    """The reference likelihood of reading ``z`` in case ``k`` of ``_LIKELIHOOD_CASES``."""
-    world, p = _LIKELIHOOD_CASES[k]
+    """The reference likelihood of reading ``z`` in case ``k`` of :func:`_likelihood_cases`."""
+    world, p = _likelihood_cases()[k]
     return door_likelihood(world, z, p)
+
+
+def _only_zeros_and_ones(value) -> bool:
+    """Whether a learner's result holds only 0 and 1 (a perfect sensor, which has its own hint)."""
+    try:
+        return bool(np.all(np.isin(np.asarray(value, dtype=float), (0.0, 1.0))))
+    except (TypeError, ValueError):
+        return False
 
 
 @check
 def check_door_likelihood(sensor_likelihood):
     """The learner's ``sensor_likelihood(world, z, p_correct)`` builds p(z | x) for every cell."""
+    cases = _likelihood_cases()
     got = {(k, z): call(sensor_likelihood, world, z, p)
-           for k, (world, p) in enumerate(_LIKELIHOOD_CASES) for z in (0, 1)}
+           for k, (world, p) in enumerate(cases) for z in (0, 1)}
     # Arguments the result does not depend on: compared between calls, so that any fixed
     # value the learner wrote in (a p of 0.9, the comparison world == 1) is caught.
-    for k, (world, p) in enumerate(_LIKELIHOOD_CASES):
+    for k, (world, p) in enumerate(cases):
         if _same(got[k, 0], got[k, 1]):
             raise CheckFailed(f"your likelihood is the same for z=0 and z=1 (p_correct={p}): it must "
                               "depend on z. It is p(z | x = i) for the reading z that was actually "
                               "received: after a 'wall' reading the wall cells are the likely ones, "
                               "after a 'door' reading the door cells (compare the map with z, not "
                               "with a door)")
-    for k, (world, p) in enumerate(_LIKELIHOOD_CASES):
-        # a fixed p_correct is named once the first case (p = 0.9, where a fixed 0.9 is
-        # right) has been compared, so that a fixed 1/0 sensor gets its own hint first
-        if k == 1 and _same(got[0, 1], got[1, 1]):
-            raise CheckFailed("your likelihood is the same for p_correct=0.9 and p_correct=0.65: use "
-                              "the argument p_correct, not a fixed number")
+    # the self-check names a fixed p_correct once its first case (p = 0.9, where a fixed 0.9
+    # is right) has been compared, so that a fixed 1/0 sensor gets its own hint first; drawn
+    # p_correct values are no number a learner wrote in, so a graded run names it at once
+    # (unless the values are all 0 and 1: the perfect sensor's hint comes first)
+    p_first = 0 if inputs.drawing() and not _only_zeros_and_ones(got[0, 1]) else 1
+    for k, (world, p) in enumerate(cases):
+        if k == p_first and _same(got[0, 1], got[1, 1]):
+            raise CheckFailed(f"your likelihood is the same for p_correct={cases[0][1]} and "
+                              f"p_correct={cases[1][1]}: use the argument p_correct, not a fixed number")
         for z in (0, 1):
             want = _door(k, z)
             what = f"likelihood for z={z}, p_correct={p} on a {len(world)}-cell world"
@@ -141,13 +228,22 @@ def check_door_likelihood(sensor_likelihood):
 def _update_cases():
     """(prior, likelihood) pairs: door likelihoods on the corridor, random positive
     likelihoods larger than 1 (densities need not be ≤ 1), one with impossible cells, and
-    two lengths. No prior is uniform, so "prior left out" shows."""
-    rng = np.random.default_rng(31)
-    n = len(CORRIDOR)
-    priors = _beliefs(n, seed=1, count=3) + _beliefs(7, seed=5, count=2)
-    likelihoods = [door_likelihood(CORRIDOR, 1, 0.8), door_likelihood(CORRIDOR, 0, 0.8),
-                   40.0 * rng.gamma(2.0, size=n), rng.random(7) + 0.05, rng.random(7)]
-    likelihoods[-1][[1, 4]] = 0.0                   # cells the measurement rules out
+    two lengths. No prior is uniform, so "prior left out" shows.
+
+    Under a run seed: another map of 12–40 cells with a drawn p_correct for the door
+    likelihoods, a short length of 5–11, the large likelihoods' scale drawn in 10–100 and the
+    two ruled-out cells drawn."""
+    rng = inputs.rng("bayes.update", 31)
+    n, short, world, p, scale, ruled_out = len(CORRIDOR), 7, CORRIDOR, 0.8, 40.0, [1, 4]
+    if inputs.drawing():
+        n, short = _drawn_length(rng, 12, 40), _drawn_length(rng, 5, 11)
+        world, p = _drawn_world(rng, n), _drawn_p(rng, 0.6, 0.95)
+        scale = float(inputs.log_uniform(rng, 10.0, 100.0))
+        ruled_out = list(rng.choice(short, 2, replace=False))
+    priors = _beliefs(n, seed=1, count=3) + _beliefs(short, seed=5, count=2)
+    likelihoods = [door_likelihood(world, 1, p), door_likelihood(world, 0, p),
+                   scale * rng.gamma(2.0, size=n), rng.random(short) + 0.05, rng.random(short)]
+    likelihoods[-1][ruled_out] = 0.0                # cells the measurement rules out
     return [(p, lk, bayes.histogram_update(p, lk)) for p, lk in zip(priors, likelihoods)]
 
 
@@ -187,20 +283,45 @@ def check_histogram_update(histogram_update):
 # the prediction
 # ---------------------------------------------------------------------------------------
 
+#: The self-check's circular motion models (on the 20-cell corridor): one moving forward, one
+#: that also steps back and jumps three cells.
+_FORWARD, _BACKWARD = {0: 0.1, 1: 0.7, 2: 0.2}, {-1: 0.6, 0: 0.3, 3: 0.1}
+
+
+def _well_conditioned(transition: np.ndarray) -> bool:
+    """Whether a motion model is far from singular: the inverted-model mistake solves with it,
+    and a circular model can have an eigenvalue near 0 (steps of 0 and 1 with equal
+    probabilities on an even ring)."""
+    return bool(np.linalg.cond(transition) < 1e3)
+
+
 @functools.cache
 def _predict_cases():
     """(belief, transition) pairs. The circular models are doubly stochastic, so a sum over
     the wrong axis gives back the belief and a transpose still sums to one; the random
-    column-stochastic matrix (rows do not sum to one) makes both show differently."""
-    n = len(CORRIDOR)
-    forward = bayes.circular_motion_model(n, {0: 0.1, 1: 0.7, 2: 0.2})
-    backward = bayes.circular_motion_model(n, {-1: 0.6, 0: 0.3, 3: 0.1})
-    rng = np.random.default_rng(41)
-    general = rng.gamma(0.7, size=(7, 7))
+    column-stochastic matrix (rows do not sum to one) makes both show differently.
+
+    Under a run seed: a corridor of 12–40 cells, the forward model's probabilities and the
+    other model's back step (1 or 2), jump (3–5) and probabilities drawn, and a general matrix
+    of 5–11 cells; each model redrawn until it is well conditioned."""
+    n, size, forward, backward = len(CORRIDOR), 7, _FORWARD, _BACKWARD
+    rng = inputs.rng("bayes.predict", 41)
+    if inputs.drawing():
+        n, size = _drawn_length(rng, 12, 40), _drawn_length(rng, 5, 11)
+        forward = _drawn_step_probs(rng, (0, 1, 2))
+        backward = _drawn_step_probs(rng, (-int(rng.integers(1, 3)), 0, int(rng.integers(3, 6))))
+    models = [bayes.circular_motion_model(n, forward), bayes.circular_motion_model(n, backward)]
+    while inputs.drawing() and not all(_well_conditioned(T) for T in models):
+        forward, backward = _drawn_step_probs(rng, tuple(forward)), _drawn_step_probs(rng, tuple(backward))
+        models = [bayes.circular_motion_model(n, forward), bayes.circular_motion_model(n, backward)]
+    general = rng.gamma(0.7, size=(size, size))
     general /= general.sum(axis=0)                  # columns sum to 1, rows do not
-    pairs = [(b, forward) for b in _beliefs(n, seed=2, count=2)] + \
-            [(_beliefs(n, seed=3, count=1)[0], backward)] + \
-            [(b, general) for b in _beliefs(7, seed=4, count=2)]
+    while inputs.drawing() and not _well_conditioned(general):
+        general = rng.gamma(0.7, size=(size, size))
+        general /= general.sum(axis=0)
+    pairs = [(b, models[0]) for b in _beliefs(n, seed=2, count=2)] + \
+            [(_beliefs(n, seed=3, count=1)[0], models[1])] + \
+            [(b, general) for b in _beliefs(size, seed=4, count=2)]
     return [(b, T, bayes.histogram_predict(b, T)) for b, T in pairs]
 
 
@@ -298,21 +419,77 @@ def _filter_cases():
     """Runs of the recursion, ``[(args, beliefs)]``: the notebook's corridor run from a
     uniform belief, and a run on another map with another p_correct, a motion model that also
     steps back, and a peaked initial belief (so that a learner who ignores world, p_correct
-    or belief0 shows)."""
+    or belief0 shows).
+
+    Under a run seed both runs are drawn in these roles (:func:`_drawn_filter_case`)."""
     n = len(CORRIDOR)
-    cases = []
-    _, z, transition, p = corridor_scenario(7)
-    cases.append((np.full(n, 1.0 / n), transition, CORRIDOR, z, p))
-    _, z, transition, p = _scenario(OTHER_WORLD, 11, 10, 0.7, {-1: 0.1, 1: 0.6, 2: 0.3})
-    cases.append((_beliefs(n, seed=12, count=1)[0], transition, OTHER_WORLD, z, p))
+    if inputs.drawing():
+        rng = inputs.rng("bayes.filter", 7)
+        cases = [_drawn_filter_case(rng, corridor=True), _drawn_filter_case(rng, corridor=False)]
+    else:
+        cases = []
+        _, z, transition, p = corridor_scenario(7)
+        cases.append((np.full(n, 1.0 / n), transition, CORRIDOR, z, p))
+        _, z, transition, p = _scenario(OTHER_WORLD, 11, 10, 0.7, {-1: 0.1, 1: 0.6, 2: 0.3})
+        cases.append((_beliefs(n, seed=12, count=1)[0], transition, OTHER_WORLD, z, p))
     return [(args, reference_histogram_filter(*args)) for args in cases]
+
+
+def _drawn_filter_case(rng: np.random.Generator, corridor: bool):
+    """The arguments of a drawn run: on the corridor from a uniform belief (the notebook's
+    run, with another robot, 10–16 steps, a p_correct in 0.6–0.95 other than the notebook's
+    0.85 and drawn probabilities of steps 0, 1, 2), or on a drawn 20-cell map (the global
+    CORRIDOR's length, so that reading it gives beliefs of the right shape) from a peaked
+    belief, 8–14 steps, steps −1, 1, 2. Redrawn until every listed mistake of the recursion is
+    off by more than 1e-3 (a run whose readings never change hides the measurement-index
+    mistakes, for instance)."""
+    n = len(CORRIDOR)
+    while True:
+        seed = int(rng.integers(2**31))
+        if corridor:
+            world, steps, offsets = CORRIDOR, int(rng.integers(10, 17)), (0, 1, 2)
+            belief0 = np.full(n, 1.0 / n)
+        else:
+            world, steps, offsets = _drawn_world(rng, n), int(rng.integers(8, 15)), (-1, 1, 2)
+            while np.array_equal(world, CORRIDOR):
+                world = _drawn_world(rng, n)
+            belief0 = bayes.normalise(rng.gamma(0.5, size=n) + 1e-3)
+        p = 0.85
+        while p == 0.85:
+            p = _drawn_p(rng, 0.6, 0.95)
+        _, z, transition, p = _scenario(world, seed, steps, p, _drawn_step_probs(rng, offsets))
+        args = (belief0, transition, world, z, p)
+        if _separates(args, uniform_start=corridor):
+            return args
+
+
+def _separates(args, uniform_start: bool) -> bool:
+    """Whether every listed mistake of the recursion is off the reference, and off every other
+    mistake, by more than 1e-3 on the run ``args``.
+
+    From a uniform belief a doubly stochastic model changes nothing, so there a prediction
+    before the first reading agrees with the reference, and predicting from belief0 agrees
+    with restarting from it (whose hint names both): the self-check's corridor run has the
+    same two coincidences, and its second run separates them."""
+    want = reference_histogram_filter(*args)
+    mistakes = [np.asarray(wrong, dtype=float) for wrong, _ in _mistakes_of(args, want)]
+    agreeing = ({3} if uniform_start else set())          # _variant_filter(predict_first=True)
+    if any(_differs(want, wrong) == (k in agreeing) for k, wrong in enumerate(mistakes)):
+        return False
+    twins = ({(0, 1)} if uniform_start else set())        # restart, from_belief0
+    return all(_differs(mistakes[j], mistakes[k]) or (j, k) in twins
+               for j in range(len(mistakes)) for k in range(j + 1, len(mistakes)))
 
 
 @functools.cache
 def _filter_mistakes(index: int) -> list:
     """The beliefs that the recursion's known mistakes give on case ``index``, with hints
     (built only when a learner's run is wrong)."""
-    args, want = _filter_cases()[index]
+    return _mistakes_of(*_filter_cases()[index])
+
+
+def _mistakes_of(args, want) -> list:
+    """The recursion's known mistakes on the run ``args`` (whose beliefs are ``want``)."""
     belief0, transition, world, z, p = args
     n = len(belief0)
     mistakes = [
@@ -413,6 +590,27 @@ _MOTION_CASES = ((20, {0: 0.1, 1: 0.8, 2: 0.1}),
                  (5, {2: 0.5, 7: 0.25, -3: 0.25}))
 
 
+@functools.cache
+def _motion_cases():
+    """The (n, step_probs) of the motion-model check: :data:`_MOTION_CASES`, or drawn under a
+    run seed in their roles: a corridor of 12–19 cells with steps 0, 1, 2 (fewer than the
+    notebook's 20, so that a model of 20 hard-coded cells shows by its shape, not by an index
+    error); a short one of 8–12 cells with a step back (1 or 2), a stay and a jump (3–5), all
+    different modulo n; and one of 4–9 cells whose three offsets are b, b + n and b − n (all
+    equal modulo n; 2b ≢ 0, so that the model is not its own transpose), with drawn
+    probabilities."""
+    def draw(rng):
+        n0, n1, n2 = (_drawn_length(rng, 12, 19), _drawn_length(rng, 8, 12), _drawn_length(rng, 4, 9))
+        back, jump = -int(rng.integers(1, 3)), int(rng.integers(3, 6))
+        b = int(rng.integers(1, n2))
+        while (2 * b) % n2 == 0:
+            b = int(rng.integers(1, n2))
+        return ((n0, _drawn_step_probs(rng, (0, 1, 2))),
+                (n1, _drawn_step_probs(rng, (back, 0, jump))),
+                (n2, _drawn_step_probs(rng, (b, b + n2, b - n2))))
+    return inputs.fixed_or_drawn(_MOTION_CASES, draw, "bayes.motion")
+
+
 def _unwrapped_model(n: int, step_probs: dict, direction: int) -> np.ndarray:
     """The corridor model without the wrap-around (a straight corridor whose robot falls off
     the end), stepping forward (``direction`` 1) or, transposed, backward (−1)."""
@@ -432,7 +630,7 @@ def _overwritten_model(n: int, step_probs: dict) -> np.ndarray:
 def check_corridor_motion_model(circular_motion_model):
     """The learner's ``circular_motion_model(n, step_probs)`` builds the (n, n) transition matrix
     ``transition[i, j]`` = p(x_k = i | x_k-1 = j) of a circular corridor."""
-    for n, step_probs in _MOTION_CASES:
+    for n, step_probs in _motion_cases():
         want = bayes.circular_motion_model(n, step_probs)
         what = f"transition matrix for n = {n}, step_probs = {step_probs}"
         got = as_array(call(circular_motion_model, n, dict(step_probs)), what)

@@ -13,6 +13,15 @@ numbers of the Σ_yy here stay below 300, so correct variants (an explicit inver
 a Cholesky factor, the gain form, the precision form through the inverse of the whole joint
 covariance) agree with the reference to ~1e-11 relative; every listed mistake differs by more
 than 1e-2 relative on some case.
+
+Under a graded run's seed (:mod:`kalman_course.checks.cases`) every family is drawn anew, in
+the same shapes and roles: the joint Gaussians (the square case's scales in 0.3–3.5, at least
+a factor 3 apart; the anisotropic case's from below 0.2 to above 15) and the observed y; the
+linear maps' Σ_xx, G and R (the square case's R = diag(σ²) with one σ in 0.1–0.5 and one in
+1.3–3); and the fused pairs (their spreads drawn around 1, 5 and 30). A drawn case is drawn
+again while cond(Σ_yy) exceeds 300 or a listed mistake comes within 1e-2 relative of the
+reference without being it (a mistake that is the reference by an identity, such as the
+variances of a 1-dimensional y, changes nothing).
 """
 
 from __future__ import annotations
@@ -21,19 +30,21 @@ import functools
 
 import numpy as np
 
+from kalman_course.checks import cases as inputs
 from kalman_course.core import gaussians
 from kalman_course.core.linalg import symmetrise
 from kalman_course.checks.harness import (CheckFailed, as_array, call, check, expect_close,
                                           expect_symmetric, type_name)
 
 
-def random_joint(n: int, m: int, seed: int, scales=None):
+def random_joint(n: int, m: int, seed, scales=None):
     """A random joint Gaussian of x (n) and y (m): (mu_x, mu_y, Sigma_xx, Sigma_xy, Sigma_yy).
 
-    ``scales`` (length n + m) multiplies each component's standard deviation, which makes
-    the covariance anisotropic; by default every component has a scale of 1.
+    ``seed`` is an integer or a ``numpy.random.Generator`` to draw from. ``scales`` (length
+    n + m) multiplies each component's standard deviation, which makes the covariance
+    anisotropic; by default every component has a scale of 1.
     """
-    rng = np.random.default_rng(seed)
+    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     A = rng.normal(size=(n + m, n + m))
     Sigma = A @ A.T + 0.5 * np.eye(n + m)
     mu = rng.normal(size=n + m)
@@ -42,6 +53,23 @@ def random_joint(n: int, m: int, seed: int, scales=None):
         Sigma = D @ Sigma @ D
         mu = D @ mu
     return mu[:n], mu[n:], Sigma[:n, :n], Sigma[:n, n:], Sigma[n:, n:]
+
+
+def _near_miss(expected, wrong) -> bool:
+    """Whether a listed mistake comes within 1e-2 relative (max norm) of the reference
+    without being it: such a drawn case would let a wrong formula pass or a hint go unnamed,
+    so it is drawn again (a mistake that equals the reference to 1e-10, by an identity that
+    holds for the case's shape, changes nothing)."""
+    expected, wrong = np.asarray(expected, dtype=float), np.asarray(wrong, dtype=float)
+    if wrong.shape != expected.shape:
+        return False
+    distance = np.max(np.abs(wrong - expected)) / np.max(np.abs(expected))
+    return bool(1e-10 < distance < 1e-2)
+
+
+def _separated(pairs) -> bool:
+    """Whether no mistake in ``pairs`` ((reference, [(wrong, hint), ...]), ...) is a near miss."""
+    return not any(_near_miss(ref, wrong) for ref, mistakes in pairs for wrong, _ in mistakes)
 
 
 def _sqrtm(S):
@@ -85,69 +113,107 @@ _CONDITIONAL_SHAPE_HINT = ("with n ≠ m the shapes do not fit, so a block is tr
 
 @functools.cache
 def _conditional_cases():
-    """Each case: (args, mean, cov, mean mistakes, cov mistakes)."""
+    """Each case: (args, mean, cov, mean mistakes, cov mistakes).
+
+    Under a run seed each shape's joint and y are drawn (:func:`_drawn_scales`), again while
+    cond(Σ_yy) > 300 or a mistake is a near miss (:func:`_near_miss`)."""
     out = []
     for n, m, seed, scales in _CONDITIONAL_SHAPES:
-        mu_x, mu_y, Sxx, Sxy, Syy = random_joint(n, m, seed, scales)
-        y = mu_y + np.sqrt(np.diag(Syy)) * np.random.default_rng(seed + 100).normal(size=m)
-        mean, cov = gaussians.conditional(mu_x, mu_y, Sxx, Sxy, Syy, y)
-        innovation = y - mu_y
-        K = np.linalg.solve(Syy, Sxy.T).T                        # Σ_xy Σ_yy⁻¹
-        K_diag = Sxy / np.diag(Syy)                              # only the variances of y
-        mean_mistakes = [
-            (mu_x + Sxy @ innovation, "the gain is Σ_xy Σ_yy⁻¹: the innovation y − μ_y must be "
-                                      "weighted by the inverse of Σ_yy"),
-            (mu_x + Sxy @ Syy @ innovation, "Σ_yy multiplies the innovation where its inverse "
-                                            "belongs: Σ_xy Σ_yy⁻¹ (y − μ_y), a solve with Σ_yy"),
-            (mu_x - K @ innovation, "sign: the mean moves towards the observation, "
-                                    "μ_x + Σ_xy Σ_yy⁻¹ (y − μ_y)"),
-            (mu_x, "the mean did not move: add Σ_xy Σ_yy⁻¹ (y − μ_y)"),
-            (mu_x + K @ y, "the mean of y is missing from the innovation: subtract μ_y from y"),
-            (mu_x + K_diag @ innovation, "only the diagonal of Σ_yy (the variances) was used, "
-                                         "as in the one-dimensional formula: the components of "
-                                         "y are correlated (Σ_yy is not diagonal), so weigh "
-                                         "the innovation by the inverse of the whole matrix "
-                                         "Σ_yy, not by each variance alone"),
-        ]
-        cov_mistakes = [
-            (Sxx + K @ Sxy.T, "sign: observing y removes uncertainty, Σ_xx − Σ_xy Σ_yy⁻¹ Σ_yx"),
-            (Sxx, "the covariance did not shrink: subtract Σ_xy Σ_yy⁻¹ Σ_yx (the Schur complement)"),
-            (Sxx - Sxy @ Sxy.T, "Σ_yy⁻¹ is missing between Σ_xy and Σ_yx"),
-            (Sxx - Sxy @ Syy @ Sxy.T, "Σ_yy stands where its inverse belongs: Σ_xy Σ_yy⁻¹ Σ_yx"),
-            (Sxx - K_diag @ Sxy.T, "only the diagonal of Σ_yy (the variances) was used, as in "
-                                   "the one-dimensional formula: y's components are correlated, "
-                                   "invert the whole matrix Σ_yy"),
-        ]
-        if n == m:
-            mean_mistakes += [
-                (mu_x + Sxy.T @ np.linalg.solve(Syy, innovation),
-                 "Σ_xy is transposed: the gain is Σ_xy Σ_yy⁻¹ with Σ_xy of shape (n, m)"),
-                (mu_x + K @ (y - mu_x), "the innovation subtracts the mean of y: y − μ_y, not μ_x"),
-                (mu_y + K @ innovation, "the conditional mean of x starts from μ_x, not μ_y"),
-                (mu_x + np.linalg.solve(Syy, Sxy) @ innovation,
-                 "Σ_yy⁻¹ Σ_xy is the gain transposed (and in the wrong order): the gain is "
-                 "Σ_xy Σ_yy⁻¹ = solve(Σ_yy, Σ_xy.T).T"),
-            ]
-            cov_mistakes += [
-                (Sxx - Sxy @ np.linalg.solve(Syy, Sxy),
-                 "Σ_yx = Σ_xyᵀ: the last factor is transposed, Σ_xy Σ_yy⁻¹ Σ_xyᵀ"),
-                (Sxx - Sxy.T @ np.linalg.solve(Syy, Sxy),
-                 "Σ_xy and Σ_yx are swapped (transposed): Σ_xx − Σ_xy Σ_yy⁻¹ Σ_xyᵀ"),
-                (Syy - Sxy.T @ np.linalg.solve(Sxx, Sxy),
-                 "that is the covariance of y given x (the Schur complement of Σ_xx, what is "
-                 "left of y's uncertainty once x is known). Here y is observed and x is "
-                 "unknown: start from Σ_xx and take the Schur complement of Σ_yy (lecture 02 "
-                 "§3 and §4)"),
-                (Sxx - np.linalg.solve(Syy, Sxy.T) @ Sxy,
-                 "the factors are in the wrong order (matrix products do not commute): "
-                 "Σ_xy Σ_yy⁻¹ Σ_yx"),
-            ]
-        # a learner who symmetrises the result (as the exercise's return line does) turns a
-        # non-symmetric wrong covariance into its symmetric part: name that one too
-        cov_mistakes += [(symmetrise(w), why) for w, why in cov_mistakes
-                         if not np.allclose(w, w.T, rtol=1e-9, atol=1e-12)]
-        out.append(((mu_x, mu_y, Sxx, Sxy, Syy, y), mean, cov, mean_mistakes, cov_mistakes))
+        if not inputs.drawing():
+            joint = random_joint(n, m, seed, scales)
+            y_noise = np.random.default_rng(seed + 100).normal(size=m)
+            out.append(_conditional_case(joint, y_noise))
+            continue
+        rng = inputs.rng("gaussians.conditional", seed)
+        while True:
+            joint = random_joint(n, m, rng, _drawn_scales(rng, scales))
+            case = _conditional_case(joint, rng.normal(size=m))
+            (*_, Syy, _), mean, cov, mean_mistakes, cov_mistakes = case
+            if np.linalg.cond(Syy) <= 300 and _separated(((mean, mean_mistakes), (cov, cov_mistakes))):
+                break
+        out.append(case)
     return out
+
+
+def _drawn_scales(rng: np.random.Generator, fixed):
+    """Scales in the role of a shape's fixed ones: None stays None (every scale 1); four, as
+    the square case's, in 0.3–3.5 and at least a factor 3 apart; five, as the anisotropic
+    case's, one below 0.2, one above 15 and three in 0.3–3 (in a drawn order)."""
+    if fixed is None:
+        return None
+    if len(fixed) == 4:
+        while True:
+            scales = inputs.log_uniform(rng, 0.3, 3.5, 4)
+            if scales.max() >= 3.0 * scales.min():
+                return scales
+    spread = np.r_[inputs.log_uniform(rng, 0.08, 0.2), inputs.log_uniform(rng, 15.0, 40.0),
+                   inputs.log_uniform(rng, 0.3, 3.0, len(fixed) - 2)]
+    return rng.permutation(spread)
+
+
+def _conditional_case(joint, y_noise):
+    """(args, mean, cov, mean mistakes, cov mistakes) of one joint Gaussian, y drawn from the
+    marginal of y with the standard normal ``y_noise``."""
+    mu_x, mu_y, Sxx, Sxy, Syy = joint
+    n, m = len(mu_x), len(mu_y)
+    y = mu_y + np.sqrt(np.diag(Syy)) * y_noise
+    mean, cov = gaussians.conditional(mu_x, mu_y, Sxx, Sxy, Syy, y)
+    innovation = y - mu_y
+    K = np.linalg.solve(Syy, Sxy.T).T                        # Σ_xy Σ_yy⁻¹
+    K_diag = Sxy / np.diag(Syy)                              # only the variances of y
+    mean_mistakes = [
+        (mu_x + Sxy @ innovation, "the gain is Σ_xy Σ_yy⁻¹: the innovation y − μ_y must be "
+                                  "weighted by the inverse of Σ_yy"),
+        (mu_x + Sxy @ Syy @ innovation, "Σ_yy multiplies the innovation where its inverse "
+                                        "belongs: Σ_xy Σ_yy⁻¹ (y − μ_y), a solve with Σ_yy"),
+        (mu_x - K @ innovation, "sign: the mean moves towards the observation, "
+                                "μ_x + Σ_xy Σ_yy⁻¹ (y − μ_y)"),
+        (mu_x, "the mean did not move: add Σ_xy Σ_yy⁻¹ (y − μ_y)"),
+        (mu_x + K @ y, "the mean of y is missing from the innovation: subtract μ_y from y"),
+        (mu_x + K_diag @ innovation, "only the diagonal of Σ_yy (the variances) was used, "
+                                     "as in the one-dimensional formula: the components of "
+                                     "y are correlated (Σ_yy is not diagonal), so weigh "
+                                     "the innovation by the inverse of the whole matrix "
+                                     "Σ_yy, not by each variance alone"),
+    ]
+    cov_mistakes = [
+        (Sxx + K @ Sxy.T, "sign: observing y removes uncertainty, Σ_xx − Σ_xy Σ_yy⁻¹ Σ_yx"),
+        (Sxx, "the covariance did not shrink: subtract Σ_xy Σ_yy⁻¹ Σ_yx (the Schur complement)"),
+        (Sxx - Sxy @ Sxy.T, "Σ_yy⁻¹ is missing between Σ_xy and Σ_yx"),
+        (Sxx - Sxy @ Syy @ Sxy.T, "Σ_yy stands where its inverse belongs: Σ_xy Σ_yy⁻¹ Σ_yx"),
+        (Sxx - K_diag @ Sxy.T, "only the diagonal of Σ_yy (the variances) was used, as in "
+                               "the one-dimensional formula: y's components are correlated, "
+                               "invert the whole matrix Σ_yy"),
+    ]
+    if n == m:
+        mean_mistakes += [
+            (mu_x + Sxy.T @ np.linalg.solve(Syy, innovation),
+             "Σ_xy is transposed: the gain is Σ_xy Σ_yy⁻¹ with Σ_xy of shape (n, m)"),
+            (mu_x + K @ (y - mu_x), "the innovation subtracts the mean of y: y − μ_y, not μ_x"),
+            (mu_y + K @ innovation, "the conditional mean of x starts from μ_x, not μ_y"),
+            (mu_x + np.linalg.solve(Syy, Sxy) @ innovation,
+             "Σ_yy⁻¹ Σ_xy is the gain transposed (and in the wrong order): the gain is "
+             "Σ_xy Σ_yy⁻¹ = solve(Σ_yy, Σ_xy.T).T"),
+        ]
+        cov_mistakes += [
+            (Sxx - Sxy @ np.linalg.solve(Syy, Sxy),
+             "Σ_yx = Σ_xyᵀ: the last factor is transposed, Σ_xy Σ_yy⁻¹ Σ_xyᵀ"),
+            (Sxx - Sxy.T @ np.linalg.solve(Syy, Sxy),
+             "Σ_xy and Σ_yx are swapped (transposed): Σ_xx − Σ_xy Σ_yy⁻¹ Σ_xyᵀ"),
+            (Syy - Sxy.T @ np.linalg.solve(Sxx, Sxy),
+             "that is the covariance of y given x (the Schur complement of Σ_xx, what is "
+             "left of y's uncertainty once x is known). Here y is observed and x is "
+             "unknown: start from Σ_xx and take the Schur complement of Σ_yy (lecture 02 "
+             "§3 and §4)"),
+            (Sxx - np.linalg.solve(Syy, Sxy.T) @ Sxy,
+             "the factors are in the wrong order (matrix products do not commute): "
+             "Σ_xy Σ_yy⁻¹ Σ_yx"),
+        ]
+    # a learner who symmetrises the result (as the exercise's return line does) turns a
+    # non-symmetric wrong covariance into its symmetric part: name that one too
+    cov_mistakes += [(symmetrise(w), why) for w, why in cov_mistakes
+                     if not np.allclose(w, w.T, rtol=1e-9, atol=1e-12)]
+    return (mu_x, mu_y, Sxx, Sxy, Syy, y), mean, cov, mean_mistakes, cov_mistakes
 
 
 def _call_conditional(fn, args):
@@ -201,76 +267,97 @@ _LINEAR_SHAPE_HINT = ("with n ≠ m the shapes do not fit, so a matrix is transp
 def _linear_cases():
     """Each case: (args, (mu_y, Syy, Sxy), mistakes for mu_y, Syy, Sxy). The first is square
     with a non-symmetric G and a diagonal, anisotropic R (noise σ = 0.2 and 1.5, so √R, R
-    and R R all differ); then n > m with full R, n > m with m = 1, and n < m."""
-    rng = np.random.default_rng(21)
+    and R R all differ); then n > m with full R, n > m with m = 1, and n < m.
+
+    Under a run seed each is drawn from another stream, the square case's σ in 0.1–0.5 and
+    1.3–3 (in a drawn order), and drawn again while a mistake is a near miss."""
+    rng = inputs.rng("gaussians.linear", 21)
     out = []
     for n, m in ((2, 2), (3, 2), (4, 1), (2, 3)):
-        A = rng.normal(size=(n, n))
-        Sxx = np.diag(rng.uniform(0.3, 3.0, n)) @ (A @ A.T + 0.3 * np.eye(n)) @ \
-            np.diag(rng.uniform(0.3, 3.0, n))
-        Sxx = symmetrise(Sxx)
-        mu_x = rng.normal(size=n)
-        G = rng.normal(size=(m, n))
-        if (n, m) == (2, 2):
-            R = np.diag([0.2 ** 2, 1.5 ** 2])
-        else:
-            B = rng.normal(size=(m, m)) * rng.uniform(0.2, 2.0, m)[:, None]
-            R = B @ B.T + 0.2 * np.eye(m)
-        mu_y, Syy, Sxy = gaussians.linear_map(mu_x, Sxx, G, R)
-        GSG = G @ Sxx @ G.T
-        syy_mistakes = [
-            (GSG, "R is missing: the observation noise adds its covariance, Σ_yy = G Σ_xx Gᵀ + R"),
-            (GSG + R @ R, "R is already a covariance (variances): add R, not R R (do not square "
-                          "it)"),
-            (GSG + _sqrtm(R), "R holds variances: add R, not its square root (a standard "
-                              "deviation)"),
-            (GSG + np.linalg.inv(R), "add the noise covariance R itself, not R⁻¹"),
-            (GSG - R, "sign: independent noise adds its covariance, + R"),
-            (R, "Σ_yy is only the noise: the uncertainty of x, carried through the map G, adds "
-                "to it"),
-        ]
-        if not np.allclose(R, np.diag(np.diag(R))):
-            syy_mistakes += [
-                (GSG + np.diag(np.diag(R)), "only the diagonal of R was added: the noise "
-                                            "components are correlated, add the whole R"),
-                (GSG + R ** 2, "R is already a covariance (variances): add R, do not square it"),
-            ]
-        if not np.allclose(R, np.eye(m)):
-            syy_mistakes.append((GSG + np.eye(m), "the noise covariance is R, not the identity"))
-        with np.errstate(invalid="ignore"):
-            root = np.sqrt(R)                                    # element-wise: NaN off-diagonal < 0
-        if np.all(np.isfinite(root)):
-            syy_mistakes.append((GSG + root, "R holds variances: add R, not its element-wise "
-                                             "square root (a standard deviation)"))
-        sxy_mistakes = [
-            (Sxx, "Σ_xy = Σ_xx Gᵀ: the map G must appear"),
-            (Sxx @ G.T @ np.linalg.inv(Syy), "that is the gain Σ_xy Σ_yy⁻¹ of the next chapter; "
-                                             "the cross-covariance is Σ_xy = Σ_xx Gᵀ"),
-        ]
-        mu_mistakes = []
-        if n == m:
-            syy_mistakes += [
-                (G.T @ Sxx @ G + R, "G and Gᵀ are swapped (transposed): Σ_yy = G Σ_xx Gᵀ + R"),
-                (G @ Sxx @ G + R, "the transpose of the last G is missing: G Σ_xx Gᵀ + R"),
-                (GSG + G @ R @ G.T, "the noise was pushed through the map: in y = G x + n the "
-                                    "noise is added after the map, in the measurement's own "
-                                    "axes and units (R is m × m), so R is added as it is, "
-                                    "not as G R Gᵀ"),
-                (Sxx + R, "Σ_yy = G Σ_xx Gᵀ + R: the map G must appear"),
-            ]
-            sxy_mistakes += [
-                (G @ Sxx, "that is Σ_yx = G Σ_xx, the transpose of Σ_xy: Σ_xy = "
-                          "E[(x − μ_x)(y − μ_y)ᵀ] has one row per component of x and one column "
-                          "per component of y, shape (n, m)"),
-                (G.T @ Sxx, "Σ_xy = Σ_xx Gᵀ: Σ_xx comes first (Gᵀ Σ_xx is another matrix)"),
-                (Sxx @ G.T + R, "the noise is independent of x: it adds nothing to Σ_xy = Σ_xx Gᵀ"),
-            ]
-            mu_mistakes += [
-                (mu_x, "the mean goes through the map: μ_y = G μ_x"),
-                (G.T @ mu_x, "G is transposed: μ_y = G μ_x"),
-            ]
-        out.append(((mu_x, Sxx, G, R), (mu_y, Syy, Sxy), (mu_mistakes, syy_mistakes, sxy_mistakes)))
+        while True:
+            square_sigmas = (0.2, 1.5)
+            if inputs.drawing():
+                square_sigmas = rng.permutation([inputs.log_uniform(rng, 0.1, 0.5),
+                                                 inputs.log_uniform(rng, 1.3, 3.0)])
+            case = _linear_case(rng, n, m, square_sigmas)
+            if not inputs.drawing() or (case is not None and _separated(zip(case[1], case[2]))):
+                break
+        out.append(case)
     return out
+
+
+def _linear_case(rng: np.random.Generator, n: int, m: int, square_sigmas):
+    """One case of :func:`_linear_cases`, drawn from ``rng``; ``square_sigmas`` are the noise
+    standard deviations of the square case's diagonal R. None under a run seed when the drawn
+    Σ_xx is not well inside the positive definite matrices."""
+    A = rng.normal(size=(n, n))
+    Sxx = np.diag(rng.uniform(0.3, 3.0, n)) @ (A @ A.T + 0.3 * np.eye(n)) @ \
+        np.diag(rng.uniform(0.3, 3.0, n))
+    Sxx = symmetrise(Sxx)
+    eigenvalues = np.linalg.eigvalsh(Sxx)
+    if inputs.drawing() and eigenvalues[0] < 1e-3 * eigenvalues[-1]:
+        return None     # the two scalings of A Aᵀ + 0.3 I can make it indefinite: draw again
+    mu_x = rng.normal(size=n)
+    G = rng.normal(size=(m, n))
+    if (n, m) == (2, 2):
+        R = np.diag(np.square(square_sigmas))
+    else:
+        B = rng.normal(size=(m, m)) * rng.uniform(0.2, 2.0, m)[:, None]
+        R = B @ B.T + 0.2 * np.eye(m)
+    mu_y, Syy, Sxy = gaussians.linear_map(mu_x, Sxx, G, R)
+    GSG = G @ Sxx @ G.T
+    syy_mistakes = [
+        (GSG, "R is missing: the observation noise adds its covariance, Σ_yy = G Σ_xx Gᵀ + R"),
+        (GSG + R @ R, "R is already a covariance (variances): add R, not R R (do not square "
+                      "it)"),
+        (GSG + _sqrtm(R), "R holds variances: add R, not its square root (a standard "
+                          "deviation)"),
+        (GSG + np.linalg.inv(R), "add the noise covariance R itself, not R⁻¹"),
+        (GSG - R, "sign: independent noise adds its covariance, + R"),
+        (R, "Σ_yy is only the noise: the uncertainty of x, carried through the map G, adds "
+            "to it"),
+    ]
+    if not np.allclose(R, np.diag(np.diag(R))):
+        syy_mistakes += [
+            (GSG + np.diag(np.diag(R)), "only the diagonal of R was added: the noise "
+                                        "components are correlated, add the whole R"),
+            (GSG + R ** 2, "R is already a covariance (variances): add R, do not square it"),
+        ]
+    if not np.allclose(R, np.eye(m)):
+        syy_mistakes.append((GSG + np.eye(m), "the noise covariance is R, not the identity"))
+    with np.errstate(invalid="ignore"):
+        root = np.sqrt(R)                                    # element-wise: NaN off-diagonal < 0
+    if np.all(np.isfinite(root)):
+        syy_mistakes.append((GSG + root, "R holds variances: add R, not its element-wise "
+                                         "square root (a standard deviation)"))
+    sxy_mistakes = [
+        (Sxx, "Σ_xy = Σ_xx Gᵀ: the map G must appear"),
+        (Sxx @ G.T @ np.linalg.inv(Syy), "that is the gain Σ_xy Σ_yy⁻¹ of the next chapter; "
+                                         "the cross-covariance is Σ_xy = Σ_xx Gᵀ"),
+    ]
+    mu_mistakes = []
+    if n == m:
+        syy_mistakes += [
+            (G.T @ Sxx @ G + R, "G and Gᵀ are swapped (transposed): Σ_yy = G Σ_xx Gᵀ + R"),
+            (G @ Sxx @ G + R, "the transpose of the last G is missing: G Σ_xx Gᵀ + R"),
+            (GSG + G @ R @ G.T, "the noise was pushed through the map: in y = G x + n the "
+                                "noise is added after the map, in the measurement's own "
+                                "axes and units (R is m × m), so R is added as it is, "
+                                "not as G R Gᵀ"),
+            (Sxx + R, "Σ_yy = G Σ_xx Gᵀ + R: the map G must appear"),
+        ]
+        sxy_mistakes += [
+            (G @ Sxx, "that is Σ_yx = G Σ_xx, the transpose of Σ_xy: Σ_xy = "
+                      "E[(x − μ_x)(y − μ_y)ᵀ] has one row per component of x and one column "
+                      "per component of y, shape (n, m)"),
+            (G.T @ Sxx, "Σ_xy = Σ_xx Gᵀ: Σ_xx comes first (Gᵀ Σ_xx is another matrix)"),
+            (Sxx @ G.T + R, "the noise is independent of x: it adds nothing to Σ_xy = Σ_xx Gᵀ"),
+        ]
+        mu_mistakes += [
+            (mu_x, "the mean goes through the map: μ_y = G μ_x"),
+            (G.T @ mu_x, "G is transposed: μ_y = G μ_x"),
+        ]
+    return (mu_x, Sxx, G, R), (mu_y, Syy, Sxy), (mu_mistakes, syy_mistakes, sxy_mistakes)
 
 
 def _close(a, b) -> bool:
@@ -322,61 +409,81 @@ def check_linear_map_moments(linear_map_moments):
 # fusing two estimates (optional challenge)
 # ---------------------------------------------------------------------------------------
 
+#: (n, seed, spread) of the fusion cases, and the range each spread is drawn from under a run
+#: seed: two estimates of about one size, then one 5 and one 30 times less certain.
+_FUSION_CASES = ((2, 51, 1.0, (0.7, 1.5)), (3, 52, 5.0, (3.0, 8.0)), (2, 53, 30.0, (20.0, 50.0)))
+
+
 @functools.cache
 def _fusion_cases():
     """Each case: (args, mean, cov, cov mistakes, mean mistakes). Two 2-D estimates whose
     ellipses point different ways, a 3-D pair with scales from 0.2 to 5, and a pair in which
     one estimate is far less certain than the other (the fused one stays near the better).
-    No case is one-dimensional or diagonal: there the scalar formulas would be right."""
+    No case is one-dimensional or diagonal: there the scalar formulas would be right.
+
+    Under a run seed each pair is drawn from another stream with its spread drawn from its
+    range in :data:`_FUSION_CASES`, and drawn again while a mistake is a near miss."""
     out = []
-    for n, seed, spread in ((2, 51, 1.0), (3, 52, 5.0), (2, 53, 30.0)):
-        rng = np.random.default_rng(seed)
-        covs = []
-        for scale in (1.0, spread):
-            A = rng.normal(size=(n, n))
-            D = np.diag(rng.uniform(0.2, 2.0, n))
-            covs.append(symmetrise(scale * D @ (A @ A.T + 0.3 * np.eye(n)) @ D))
-        Sa, Sb = covs
-        mu_a, mu_b = rng.normal(size=n), 3.0 * rng.normal(size=n)
-        mean, cov = gaussians.product(mu_a, Sa, mu_b, Sb)
-        K_swapped = np.linalg.solve(Sa + Sb, Sb).T              # Σ_b (Σ_a + Σ_b)⁻¹
-        elementwise = 1.0 / (1.0 / Sa + 1.0 / Sb)
-        cov_mistakes = [
-            (elementwise, "1 / Σ is not the inverse of a covariance matrix: the one-dimensional "
-                          "formula 1 / (1/σ_a² + 1/σ_b²) does not work element by element. "
-                          "Information (the inverse covariance, a matrix inverse) adds up, or "
-                          "use the conditioning you wrote above with G = I"),
-            (Sa + Sb, "covariances add for a sum of two independent variables, not when two "
-                      "estimates of the same x are fused: the fused covariance is smaller than "
-                      "both"),
-            (0.5 * (Sa + Sb), "an average of the covariances: the fused covariance is smaller "
-                              "than both, since each estimate adds information"),
-            (np.linalg.inv(Sa + Sb), "the inverse of the sum is not the sum of the inverses: "
-                                     "the inverses (the information) add up"),
-            (Sa, "the covariance did not shrink: the second estimate adds information"),
-            (symmetrise(Sa - K_swapped @ Sa),
-             "the weights are swapped: moving from estimate a towards b, the gain grows with a's "
-             "uncertainty, Σ_a (Σ_a + Σ_b)⁻¹ (b's gain, Σ_b (Σ_a + Σ_b)⁻¹, moves from b towards a)"),
-            (symmetrise(Sa @ Sb @ np.linalg.inv(Sa + Sb)),
-             "the factors are in the wrong order (matrix products do not commute): the gain "
-             "Σ_a (Σ_a + Σ_b)⁻¹ multiplies Σ_b from the left"),
-        ]
-        mean_mistakes = [
-            (elementwise @ (mu_a / np.diag(Sa) + mu_b / np.diag(Sb)),
-             "each mean was weighed by its variances alone, as in the one-dimensional formula "
-             "applied element by element: weigh it by the whole inverse covariance"),
-            (cov @ (mu_a / np.diag(Sa) + mu_b / np.diag(Sb)),
-             "each mean was weighed by its variances alone (element by element): weigh it by "
-             "the whole inverse covariance, the information matrix"),
-            (0.5 * (mu_a + mu_b), "the plain average ignores how certain each estimate is: the "
-                                  "fused mean lies nearer the more certain one"),
-            (mu_a + K_swapped @ (mu_b - mu_a), "the weights are swapped: the fused mean moves "
-                                               "towards the more certain estimate, not the "
-                                               "less certain one"),
-            (mu_a, "the mean did not move: the second estimate must pull it"),
-        ]
-        out.append(((mu_a, Sa, mu_b, Sb), mean, cov, cov_mistakes, mean_mistakes))
+    for n, seed, spread, spread_range in _FUSION_CASES:
+        rng = inputs.rng("gaussians.fusion", seed)
+        while True:
+            if inputs.drawing():
+                spread = float(inputs.log_uniform(rng, *spread_range))
+            case = _fusion_case(rng, n, spread)
+            _, mean, cov, cov_mistakes, mean_mistakes = case
+            if not inputs.drawing() or _separated(((cov, cov_mistakes), (mean, mean_mistakes))):
+                break
+        out.append(case)
     return out
+
+
+def _fusion_case(rng: np.random.Generator, n: int, spread: float):
+    """One case of :func:`_fusion_cases`, drawn from ``rng``: Σ_b is about ``spread`` times Σ_a."""
+    covs = []
+    for scale in (1.0, spread):
+        A = rng.normal(size=(n, n))
+        D = np.diag(rng.uniform(0.2, 2.0, n))
+        covs.append(symmetrise(scale * D @ (A @ A.T + 0.3 * np.eye(n)) @ D))
+    Sa, Sb = covs
+    mu_a, mu_b = rng.normal(size=n), 3.0 * rng.normal(size=n)
+    mean, cov = gaussians.product(mu_a, Sa, mu_b, Sb)
+    K_swapped = np.linalg.solve(Sa + Sb, Sb).T              # Σ_b (Σ_a + Σ_b)⁻¹
+    elementwise = 1.0 / (1.0 / Sa + 1.0 / Sb)
+    cov_mistakes = [
+        (elementwise, "1 / Σ is not the inverse of a covariance matrix: the one-dimensional "
+                      "formula 1 / (1/σ_a² + 1/σ_b²) does not work element by element. "
+                      "Information (the inverse covariance, a matrix inverse) adds up, or "
+                      "use the conditioning you wrote above with G = I"),
+        (Sa + Sb, "covariances add for a sum of two independent variables, not when two "
+                  "estimates of the same x are fused: the fused covariance is smaller than "
+                  "both"),
+        (0.5 * (Sa + Sb), "an average of the covariances: the fused covariance is smaller "
+                          "than both, since each estimate adds information"),
+        (np.linalg.inv(Sa + Sb), "the inverse of the sum is not the sum of the inverses: "
+                                 "the inverses (the information) add up"),
+        (Sa, "the covariance did not shrink: the second estimate adds information"),
+        (symmetrise(Sa - K_swapped @ Sa),
+         "the weights are swapped: moving from estimate a towards b, the gain grows with a's "
+         "uncertainty, Σ_a (Σ_a + Σ_b)⁻¹ (b's gain, Σ_b (Σ_a + Σ_b)⁻¹, moves from b towards a)"),
+        (symmetrise(Sa @ Sb @ np.linalg.inv(Sa + Sb)),
+         "the factors are in the wrong order (matrix products do not commute): the gain "
+         "Σ_a (Σ_a + Σ_b)⁻¹ multiplies Σ_b from the left"),
+    ]
+    mean_mistakes = [
+        (elementwise @ (mu_a / np.diag(Sa) + mu_b / np.diag(Sb)),
+         "each mean was weighed by its variances alone, as in the one-dimensional formula "
+         "applied element by element: weigh it by the whole inverse covariance"),
+        (cov @ (mu_a / np.diag(Sa) + mu_b / np.diag(Sb)),
+         "each mean was weighed by its variances alone (element by element): weigh it by "
+         "the whole inverse covariance, the information matrix"),
+        (0.5 * (mu_a + mu_b), "the plain average ignores how certain each estimate is: the "
+                              "fused mean lies nearer the more certain one"),
+        (mu_a + K_swapped @ (mu_b - mu_a), "the weights are swapped: the fused mean moves "
+                                           "towards the more certain estimate, not the "
+                                           "less certain one"),
+        (mu_a, "the mean did not move: the second estimate must pull it"),
+    ]
+    return (mu_a, Sa, mu_b, Sb), mean, cov, cov_mistakes, mean_mistakes
 
 
 @check

@@ -18,6 +18,17 @@ unless a comment says otherwise. Every correct way to write the step functions (
 or solve, Joseph or short form, with or without a final symmetrisation) agrees with the
 reference to ~1e-13 relative here, six orders below; every mistake in the catalogue
 (``tests/mutants/ch03.py``) differs by more than 1e-4 relative.
+
+Under a graded run's seed (:mod:`kalman_course.checks.cases`) every family is drawn anew, in
+the same roles: the CV model's (T, σ_a), each still on its side of 1; other KITTI states,
+other fixes and other dense covariances; the GNSS noise's three σ (one below 1, two above,
+in a drawn order) and the rotation that makes R non-diagonal; the dense m = 2 < n = 4 update
+cases and the dense prediction case (redrawn while cond(S) ≥ 1e3 or a listed mistake comes
+within 1e-3 relative of the reference without being it); the prediction's (T, σ_a) settings;
+and for the whole runs σ_a and σ_gnss (one below 1 and one above in each run, never the
+self-check's pair) and a window of each excerpt's fixes (each end moved in by up to a fifth),
+for the challenge also the missing fixes (two single dropouts and a 3–5 s outage at drawn
+rows, and the last fix), each run redrawn until no listed mistake gives the reference's run.
 """
 
 from __future__ import annotations
@@ -29,6 +40,7 @@ import numpy as np
 
 from kalman_course.filters import kf
 from kalman_course import symbolic
+from kalman_course.checks import cases as inputs  # `cases` names the lists of cases below
 from kalman_course.checks.harness import (CheckFailed, as_array, call, check, expect_close,
                                           expect_shape, expect_symmetric, type_name)
 from kalman_course.core import linalg
@@ -44,10 +56,16 @@ SIGMA_V0 = 15.0     # m/s, initial velocity uncertainty: the car's speed is unkn
 #: (excerpt, σ_a, σ_gnss) of the whole-run check: both noise levels ≠ 1 and on both sides
 #: of 1, so that a standard deviation used for a variance (or σ_a not squared) shows.
 RUN_CASES = (("cruise", 0.5, 1.6), ("turns", 2.0, 0.7))
+#: Under a run seed, the ranges each run case's (σ_a, σ_gnss) is drawn from: in each run one
+#: below 1 and one above, at least 20 % from 1, as in the self-check.
+RUN_DRAWN = (((0.3, 0.8), (1.2, 2.5)), ((1.3, 3.0), (0.4, 0.8)))
 
 #: (T, σ_a) of the CV-model check: T ≠ 1 (T, T², T³, T⁴ differ), σ_a ≠ 1 (σ ≠ σ²), each
 #: on both sides of 1.
 CV_CASES = ((0.1, 2.0), (0.5, 0.3), (2.0, 0.7))
+#: Under a run seed, the ranges each CV case's (T, σ_a) is drawn from: every one keeps its
+#: side of 1 and stays at least 20 % away from it.
+CV_DRAWN = (((0.05, 0.3), (1.5, 3.0)), ((0.3, 0.8), (0.2, 0.5)), ((1.5, 3.0), (0.5, 0.8)))
 
 #: Anisotropic GNSS noise (m): the vertical is worse than the horizontal, all ≠ 1.
 GNSS_SIGMAS = np.array([0.5, 1.5, 3.0])
@@ -56,6 +74,31 @@ SHAPES_UPDATE = ("the shapes are x̌ (n,), P̌ (n, n), y (m,), G (m, n), R (m, m
                  "S = G P̌ Gᵀ + R is (m, m), K = P̌ Gᵀ S⁻¹ is (n, m) and I − K G is (n, n). Multiply matrices "
                  "with @ (not *); S⁻¹ is a matrix inverse (np.linalg.solve or inv), not a "
                  "division; and check the order and the transposes")
+
+
+def _drawn(rng: np.random.Generator, low: float, high: float) -> float:
+    """A drawn noise level or time step, log-uniform in [low, high] and rounded to three
+    decimals (a message quotes it exactly)."""
+    return round(float(inputs.log_uniform(rng, low, high)), 3)
+
+
+def _relative_near_miss(expected, wrong, margin: float = 1e-3) -> bool:
+    """Whether a listed mistake comes within ``margin`` relative (max norm) of the reference
+    without being it (to 1e-10, an identity of the case's structure, such as R R = R * R for
+    a diagonal R): a drawn case where that happens is drawn again."""
+    expected, wrong = np.asarray(expected, dtype=float), np.asarray(wrong, dtype=float)
+    if wrong.shape != expected.shape:
+        return False
+    distance = np.max(np.abs(wrong - expected)) / np.max(np.abs(expected))
+    return bool(1e-10 < distance < margin)
+
+
+@functools.lru_cache(maxsize=None)
+def _cv_cases():
+    """The (T, σ_a) of the CV-model check: :data:`CV_CASES`, or drawn from :data:`CV_DRAWN`."""
+    return inputs.fixed_or_drawn(
+        CV_CASES, lambda rng: tuple((_drawn(rng, *T), _drawn(rng, *sigma)) for T, sigma in CV_DRAWN),
+        "kf.cv")
 
 
 def cv_matrices_reference(T, sigma_a, dim=3):
@@ -84,23 +127,56 @@ def _spd(rng: np.random.Generator, n: int) -> np.ndarray:
 
 @functools.lru_cache(maxsize=None)
 def _kitti_states(name: str, count: int = 4, seed: int = 0):
-    """A few CV states [p, v] from KITTI ground truth with random dense SPD covariances."""
+    """A few CV states [p, v] from KITTI ground truth with random dense SPD covariances
+    (other states and covariances under a run seed)."""
     truth = load_kitti(name).truth
-    rng = np.random.default_rng(seed)
+    rng = inputs.rng(f"kf.states.{name}", seed)
     idx = rng.choice(len(truth.t), size=count, replace=False)
     return tuple((np.r_[truth.position[i], truth.velocity[i]], _spd(rng, 6)) for i in idx)
 
 
-def _gnss_noise(j: int) -> np.ndarray:
+#: The rotation angles (rad) that turn the diagonal GNSS R into a non-diagonal one.
+GNSS_ANGLES = (0.6, 0.6)
+
+
+def _gnss_noise(j: int, sigmas=GNSS_SIGMAS, angles=GNSS_ANGLES) -> np.ndarray:
     """The R of GNSS case ``j``: diagonal anisotropic for even j (first, so that an
-    element-wise √R stays finite), rotated and non-diagonal for odd j."""
-    R = np.diag(GNSS_SIGMAS**2)
+    element-wise √R stays finite), rotated and non-diagonal for odd j (about z by the first
+    angle, about x by the second)."""
+    R = np.diag(np.square(sigmas))
     if j % 2 == 0:
         return R
-    c, s = np.cos(0.6), np.sin(0.6)
+    (c, s), (c2, s2) = ((np.cos(a), np.sin(a)) for a in angles)
     Rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ \
-        np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+        np.array([[1.0, 0.0, 0.0], [0.0, c2, -s2], [0.0, s2, c2]])
     return linalg.symmetrise(Rot @ R @ Rot.T)
+
+
+def _drawn_gnss_noise(rng: np.random.Generator):
+    """(σ, angles) of the GNSS noise under a run seed: one σ in 0.3–0.8 m and two in 1.2–2
+    and 2.5–4 m (all ≠ 1, anisotropic), in a drawn order; rotations of 0.3–1.2 rad either way."""
+    sigmas = rng.permutation([_drawn(rng, 0.3, 0.8), _drawn(rng, 1.2, 2.0), _drawn(rng, 2.5, 4.0)])
+    angles = tuple(float(a) for a in rng.choice([-1.0, 1.0], 2) * rng.uniform(0.3, 1.2, 2))
+    return sigmas, angles
+
+
+def _dense_update_case(rng: np.random.Generator):
+    """(x̌, P̌, y, G, R) with m = 2 < n = 4, everything dense."""
+    n, m = 4, 2
+    return (rng.normal(size=n) * 3.0, _spd(rng, n), rng.normal(size=m) * 3.0,
+            rng.normal(size=(m, n)), 0.7 * _spd(rng, m))
+
+
+def _update_separated(case, ref) -> bool:
+    """Whether a drawn update case keeps its mistakes apart: cond(S) < 1e3 (correct variants
+    agree to ~1e-13) and no listed S, gain or posterior is a near miss of the reference."""
+    x_check, P_check, y, G, R = case
+    if np.linalg.cond(ref.S) >= 1e3:
+        return False
+    families = ((ref.S, _s_mistakes(P_check, G, R)), (ref.K, _k_mistakes(P_check, G, R, ref.S, ref.K)),
+                (ref.x_hat, _posterior_mean_mistakes(x_check, y, G, ref.K, ref.innovation)),
+                (ref.P_hat, _posterior_cov_mistakes(P_check, G, R, ref.S, ref.K)))
+    return not any(_relative_near_miss(want, wrong) for want, mistakes in families for wrong, _ in mistakes)
 
 
 @functools.lru_cache(maxsize=None)
@@ -110,18 +186,26 @@ def _update_cases():
     KITTI states with the noisy GNSS fixes and anisotropic R (diagonal, then rotated),
     then two dense cases with m = 2 < n = 4 and a dense G, where K (n, m) and its
     transpose differ in shape, G P̌ Gᵀ is not a block of P̌, and every transpose matters.
+    Under a run seed: other states, fixes (drawn rows), σ and rotations of R
+    (:func:`_drawn_gnss_noise`), and dense cases drawn until :func:`_update_separated`.
     """
     G = position_observation()
     cases = []
     for name in EXCERPTS:
         fixes = load_kitti(name).gnss.observations()
+        rng = inputs.rng(f"kf.update.{name}", 0)
+        rows, sigmas, angles = [j * 5 for j in range(4)], GNSS_SIGMAS, GNSS_ANGLES
+        if inputs.drawing():
+            rows = rng.choice(len(fixes.t), size=4, replace=False)
+            sigmas, angles = _drawn_gnss_noise(rng)
         for j, (x_check, P_check) in enumerate(_kitti_states(name)):
-            cases.append((x_check, P_check, fixes.position[j * 5], G, _gnss_noise(j)))
-    rng = np.random.default_rng(3)
+            cases.append((x_check, P_check, fixes.position[rows[j]], G, _gnss_noise(j, sigmas, angles)))
+    rng = inputs.rng("kf.update.dense", 3)
     for _ in range(2):
-        n, m = 4, 2
-        cases.append((rng.normal(size=n) * 3.0, _spd(rng, n), rng.normal(size=m) * 3.0,
-                      rng.normal(size=(m, n)), 0.7 * _spd(rng, m)))
+        case = _dense_update_case(rng)
+        while inputs.drawing() and not _update_separated(case, kf.kf_update(*case, joseph=True)):
+            case = _dense_update_case(rng)
+        cases.append(case)
     return tuple((case, kf.kf_update(*case, joseph=True)) for case in cases)
 
 
@@ -246,7 +330,7 @@ def _f_mistakes(T, F, Q):
 @check
 def check_cv_process_noise(cv_matrices):
     """The learner's ``cv_matrices(T, sigma_a)`` returns (F, Q) of the 3-D CV model."""
-    for T, sigma_a in CV_CASES:
+    for T, sigma_a in _cv_cases():
         result = _call(cv_matrices, T, sigma_a, hint="F and Q are (6, 6): the process-noise "
                                                       "Jacobian B = [T²/2 I; T I] is (6, 3), the "
                                                       "acceleration's covariance σ_a² I is (3, 3) "
@@ -274,19 +358,40 @@ def check_cv_process_noise(cv_matrices):
 # predict
 # ---------------------------------------------------------------------------------------
 
+#: (T, σ_a) of the prediction's KITTI cases, in turn; under a run seed each is drawn from the
+#: ranges beside it (T around 1 s, well below and above; σ_a on both sides of 1).
+PREDICT_SETTINGS = ((1.0, 0.5), (0.1, 2.0), (0.37, 1.3), (2.5, 0.8))
+PREDICT_DRAWN = (((0.6, 1.6), (0.3, 0.7)), ((0.05, 0.2), (1.5, 3.0)), ((0.25, 0.6), (1.1, 1.6)),
+                 ((1.8, 3.5), (0.6, 0.9)))
+
+
+def _dense_predict_case(rng: np.random.Generator):
+    """(x̂, P̂, F, Q) with n = 4, F ≠ Fᵀ everywhere and Q not diagonal."""
+    n = 4
+    return rng.normal(size=n), _spd(rng, n), rng.normal(size=(n, n)), 0.5 * _spd(rng, n)
+
+
 @functools.lru_cache(maxsize=None)
 def _predict_cases():
     """(x̂, P̂, F, Q) with the reference prior: KITTI states under the CV model at several
-    T and σ_a (all ≠ 1), then a dense F and dense Q (F ≠ Fᵀ everywhere, Q not diagonal)."""
-    settings = ((1.0, 0.5), (0.1, 2.0), (0.37, 1.3), (2.5, 0.8))
+    T and σ_a (all ≠ 1), then a dense F and dense Q (F ≠ Fᵀ everywhere, Q not diagonal).
+    Under a run seed the settings are drawn (:data:`PREDICT_DRAWN`) and the dense case again
+    while a listed prior is a near miss."""
+    settings = inputs.fixed_or_drawn(
+        PREDICT_SETTINGS,
+        lambda rng: tuple((_drawn(rng, *T), _drawn(rng, *sigma)) for T, sigma in PREDICT_DRAWN),
+        "kf.predict.settings")
     cases = []
     for name in EXCERPTS:
         for k, (x_hat, P_hat) in enumerate(_kitti_states(name)):
             T, sigma_a = settings[k % len(settings)]
             cases.append((x_hat, P_hat, *cv_matrices_reference(T, sigma_a)))
-    rng = np.random.default_rng(5)
-    n = 4
-    cases.append((rng.normal(size=n), _spd(rng, n), rng.normal(size=(n, n)), 0.5 * _spd(rng, n)))
+    rng = inputs.rng("kf.predict.dense", 5)
+    case = _dense_predict_case(rng)
+    while inputs.drawing() and any(_relative_near_miss(kf.kf_predict(*case)[1], wrong)
+                                   for wrong, _ in _prior_mistakes(*case)):
+        case = _dense_predict_case(rng)
+    cases.append(case)
     return tuple((case, kf.kf_predict(*case)) for case in cases)
 
 
@@ -545,11 +650,70 @@ def _gnss_kf_variant(t, y, sigma_a, sigma_gnss, sigma_v0=SIGMA_V0, *, r_var=None
     return np.array(xs), np.array(Ps)
 
 
-@functools.lru_cache(maxsize=None)
-def _run_reference(name: str, sigma_a: float, sigma_gnss: float):
-    """(t, y, x_ref, P_ref) of a whole-run case (the reference is the same for every learner)."""
+def _fixes(name: str, start: int = 0, stop: int | None = None):
+    """(t, y) of the excerpt's GNSS fixes ``start:stop``."""
     fixes = load_kitti(name).gnss.observations()
-    return (fixes.t, fixes.position, *reference_gnss_kf(fixes.t, fixes.position, sigma_a, sigma_gnss))
+    return fixes.t[start:stop], fixes.position[start:stop]
+
+
+def _drawn_window(rng: np.random.Generator, name: str) -> tuple[int, int]:
+    """(start, stop) of a drawn window of an excerpt's fixes: each end moved in by up to a
+    fifth of them (the cruise excerpt keeps at least 18 of its 30 fixes)."""
+    count = len(load_kitti(name).gnss.observations().t)
+    cut = count // 5
+    return int(rng.integers(0, cut + 1)), count - int(rng.integers(0, cut + 1))
+
+
+def _far_from(run, reference) -> bool:
+    """Whether a listed mistake's run is more than 100 times the check's tolerance from the
+    reference's (rtol 1e-4; atol 1e-4 m for x, 1e-7 for P): a drawn run where one is closer
+    is drawn again, so that no mistake can pass nor be named by another's hint."""
+    (x, P), (x_ref, P_ref) = run, reference
+    return not (np.allclose(x, x_ref, rtol=1e-4, atol=1e-4) and np.allclose(P, P_ref, rtol=1e-4, atol=1e-7))
+
+
+def _drawn_noise_levels(rng: np.random.Generator, ranges, fixed) -> tuple[float, float]:
+    """(σ_a, σ_gnss) drawn from ``ranges``, never the self-check's pair ``fixed``."""
+    while True:
+        levels = tuple(_drawn(rng, *r) for r in ranges)
+        if levels != tuple(fixed):
+            return levels
+
+
+@functools.lru_cache(maxsize=None)
+def _run_cases():
+    """(excerpt, σ_a, σ_gnss, start, stop) of the whole-run check: :data:`RUN_CASES` on all of
+    each excerpt's fixes, or under a run seed the noise levels drawn from :data:`RUN_DRAWN` on
+    a drawn window of the fixes, again until every run of :func:`_run_mistakes` is far from
+    the reference's (:func:`_far_from`)."""
+    if not inputs.drawing():
+        return tuple((name, sigma_a, sigma_gnss, 0, None) for name, sigma_a, sigma_gnss in RUN_CASES)
+    out = []
+    for (name, *fixed), ranges in zip(RUN_CASES, RUN_DRAWN):
+        rng = inputs.rng(f"kf.run.{name}", 0)
+        while True:
+            sigma_a, sigma_gnss = _drawn_noise_levels(rng, ranges, fixed)
+            start, stop = _drawn_window(rng, name)
+            _, _, *reference = _run_reference(name, sigma_a, sigma_gnss, start, stop)
+            t, y = _fixes(name, start, stop)
+            if all(_far_from(run, reference) for run, _ in _run_mistakes(t, y, sigma_a, sigma_gnss)):
+                break
+        out.append((name, sigma_a, sigma_gnss, start, stop))
+    return tuple(out)
+
+
+@functools.lru_cache(maxsize=None)
+def _run_reference(name: str, sigma_a: float, sigma_gnss: float, start: int = 0, stop: int | None = None):
+    """(t, y, x_ref, P_ref) of a whole-run case (the reference is the same for every learner)."""
+    t, y = _fixes(name, start, stop)
+    return (t, y, *reference_gnss_kf(t, y, sigma_a, sigma_gnss))
+
+
+def _excerpt_label(name: str, start: int, stop: int | None) -> str:
+    """How a message names a run's fixes: the excerpt, and the window when it is not all of it."""
+    if start == 0 and stop is None:
+        return f"the '{name}' excerpt"
+    return f"the '{name}' excerpt's fixes {start} to {stop - 1}"
 
 
 def _run_mistakes(t, y, sigma_a, sigma_gnss):
@@ -642,8 +806,9 @@ def check_gnss_kf_run(run_gnss_kf):
     step) where the fixes are up to 1.4 ms from 1 s apart, exceeds the tolerance more than
     100-fold.
     """
-    for name, sigma_a, sigma_gnss in RUN_CASES:
-        t, y, x_ref, P_ref = _run_reference(name, sigma_a, sigma_gnss)
+    for name, sigma_a, sigma_gnss, start, stop in _run_cases():
+        t, y, x_ref, P_ref = _run_reference(name, sigma_a, sigma_gnss, start, stop)
+        excerpt = _excerpt_label(name, start, stop)
         N = len(t)
         result = _call(run_gnss_kf, t, y, sigma_a, sigma_gnss,
                        hint="y is (N, 3); G = [I 0] is (3, 6), R = σ_gnss² I (3, 3); each step "
@@ -653,24 +818,24 @@ def check_gnss_kf_run(run_gnss_kf):
         for value, ref, what in ((x_res, x_ref, "x_hat"), (P_res, P_ref, "P_hat")):
             shape = np.shape(as_array(value, what))
             if len(shape) == ref.ndim and shape[1:] == ref.shape[1:] and shape[0] != N:
-                raise CheckFailed(f"{what} on the '{name}' excerpt has {shape[0]} rows for {N} fixes. "
+                raise CheckFailed(f"{what} on {excerpt} has {shape[0]} rows for {N} fixes. "
                                   f"Hint: {rows}")
         x_hat = expect_shape(x_res, x_ref.shape, "x_hat")
         P_hat = expect_shape(P_res, P_ref.shape, "P_hat")
         if _same_run(x_hat, P_hat, x_ref, P_ref):
             continue
         _reject_known_run_mistakes(x_hat, P_hat, y, sigma_gnss, _run_mistakes(t, y, sigma_a, sigma_gnss),
-                                   f"the '{name}' excerpt (σ_a = {sigma_a}, σ_gnss = {sigma_gnss})")
+                                   f"{excerpt} (σ_a = {sigma_a}, σ_gnss = {sigma_gnss})")
         truth = truth_at(name, t)
         # 3-D position RMSE = norm of the per-axis RMSEs (NaN in a learner's x_hat stays NaN)
         err = np.linalg.norm(rmse(x_hat[:, :3], truth, axis=0))
         err_ref = np.linalg.norm(rmse(x_ref[:, :3], truth, axis=0))
-        expect_close(x_hat, x_ref, f"x_hat on the '{name}' excerpt", rtol=1e-6, atol=1e-6,
+        expect_close(x_hat, x_ref, f"x_hat on {excerpt}", rtol=1e-6, atol=1e-6,
                      hint=f"your position RMSE against ground truth is {err:.3f} m, the reference "
                           f"reaches {err_ref:.3f} m. Check R = σ_gnss² I, Q from "
                           "cv_matrices(t[k] − t[k−1], sigma_a) and that each row stores the "
                           "posterior")
-        expect_close(P_hat, P_ref, f"P_hat on the '{name}' excerpt", rtol=1e-6, atol=1e-9,
+        expect_close(P_hat, P_ref, f"P_hat on {excerpt}", rtol=1e-6, atol=1e-9,
                      hint="x_hat is right but P_hat is not: store the posterior covariance of "
                           "each step, the one returned with x_hat")
 
@@ -685,11 +850,27 @@ def check_gnss_kf_run(run_gnss_kf):
 GAP_ROWS = (3, 8, 9, 10, 11, 17, -1)
 
 
-def with_missing_fixes(y) -> np.ndarray:
-    """A copy of the fixes ``y`` (N, 3) with the rows of :data:`GAP_ROWS` set to NaN."""
+def with_missing_fixes(y, rows=GAP_ROWS) -> np.ndarray:
+    """A copy of the fixes ``y`` (N, 3) with the rows ``rows`` (default :data:`GAP_ROWS`)
+    set to NaN."""
     y = np.array(y, dtype=float)
-    y[sorted({row % len(y) for row in GAP_ROWS})] = np.nan
+    y[sorted({row % len(y) for row in rows})] = np.nan
     return y
+
+
+def _drawn_gap_rows(rng: np.random.Generator, count: int) -> tuple[int, ...]:
+    """Missing rows in the roles of :data:`GAP_ROWS` for ``count`` fixes: two single dropouts
+    and an outage of 3–5 fixes at drawn rows in [2, count − 3], at least two fixes apart (so
+    that a fix ends each gap and the next one sees its effect), and the last fix."""
+    length = int(rng.integers(3, 6))
+    while True:
+        singles = rng.choice(np.arange(2, count - 2), size=2, replace=False)
+        outage = int(rng.integers(2, count - 2 - length + 1))
+        segments = sorted([(int(a), int(a)) for a in singles] + [(outage, outage + length - 1)])
+        if all(later[0] - earlier[1] >= 3 for earlier, later in zip(segments, segments[1:])):
+            break
+    rows = [row for first, last in segments for row in range(first, last + 1)]
+    return tuple(rows) + (-1,)
 
 
 def reference_gnss_kf_gaps(t, y, sigma_a=SIGMA_A, sigma_gnss=SIGMA_GNSS, sigma_v0=SIGMA_V0):
@@ -754,12 +935,37 @@ def _gaps_variant(t, y, sigma_a, sigma_gnss, sigma_v0=SIGMA_V0, *, at_gap="prior
 
 
 @functools.lru_cache(maxsize=None)
-def _gaps_reference(name: str, sigma_a: float, sigma_gnss: float):
+def _gaps_cases():
+    """(excerpt, σ_a, σ_gnss, start, stop, missing rows) of the gaps check: the whole-run
+    settings on all the fixes with :data:`GAP_ROWS` missing, or under a run seed the noise
+    levels and window drawn as for :func:`_run_cases` with the rows of
+    :func:`_drawn_gap_rows`, again until every run of :func:`_gaps_mistakes` is far from the
+    reference's (:func:`_far_from`)."""
+    if not inputs.drawing():
+        return tuple((name, sigma_a, sigma_gnss, 0, None, GAP_ROWS)
+                     for name, sigma_a, sigma_gnss in RUN_CASES)
+    out = []
+    for (name, *fixed), ranges in zip(RUN_CASES, RUN_DRAWN):
+        rng = inputs.rng(f"kf.gaps.{name}", 0)
+        while True:
+            sigma_a, sigma_gnss = _drawn_noise_levels(rng, ranges, fixed)
+            start, stop = _drawn_window(rng, name)
+            rows = _drawn_gap_rows(rng, stop - start)
+            t, y, *reference = _gaps_reference(name, sigma_a, sigma_gnss, start, stop, rows)
+            if all(_far_from(run, reference) for run, _ in _gaps_mistakes(t, y, sigma_a, sigma_gnss)):
+                break
+        out.append((name, sigma_a, sigma_gnss, start, stop, rows))
+    return tuple(out)
+
+
+@functools.lru_cache(maxsize=None)
+def _gaps_reference(name: str, sigma_a: float, sigma_gnss: float, start: int = 0, stop: int | None = None,
+                    rows: tuple = GAP_ROWS):
     """(t, y with gaps, x_ref, P_ref) of a gaps case (the same for every learner)."""
-    fixes = load_kitti(name).gnss.observations()
-    y = with_missing_fixes(fixes.position)
+    t, y = _fixes(name, start, stop)
+    y = with_missing_fixes(y, rows)
     y.flags.writeable = False
-    return (fixes.t, y, *reference_gnss_kf_gaps(fixes.t, y, sigma_a, sigma_gnss))
+    return (t, y, *reference_gnss_kf_gaps(t, y, sigma_a, sigma_gnss))
 
 
 def _gaps_mistakes(t, y, sigma_a, sigma_gnss):
@@ -789,14 +995,16 @@ def _gaps_mistakes(t, y, sigma_a, sigma_gnss):
              "kf_update": "kf_update"})
 def check_gnss_kf_gaps(run_gnss_kf_gaps):
     """The learner's ``run_gnss_kf_gaps(t, y, sigma_a, sigma_gnss)``: the KITTI excerpts'
-    fixes with a 4 s outage, single dropouts and the last fix missing (NaN rows).
+    fixes with a 4 s outage, single dropouts and the last fix missing (NaN rows); under a
+    run seed, drawn ones in the same roles (:func:`_gaps_cases`).
 
     Tolerance as in :func:`check_gnss_kf_run` (rtol 1e-6; atol 1e-6 m for x, 1e-9 for P);
     the nearest mistake, the last fix's prior replaced by its stale posterior, differs by
     more than 1e-2 m in that row.
     """
-    for name, sigma_a, sigma_gnss in RUN_CASES:
-        t, y, x_ref, P_ref = _gaps_reference(name, sigma_a, sigma_gnss)
+    for name, sigma_a, sigma_gnss, start, stop, rows in _gaps_cases():
+        t, y, x_ref, P_ref = _gaps_reference(name, sigma_a, sigma_gnss, start, stop, rows)
+        excerpt = _excerpt_label(name, start, stop)
         N = len(t)
         missing = set(np.flatnonzero(np.all(np.isnan(y), axis=1)).tolist())
         # a copy: a learner's in-place edit of y (np.nan_to_num(y, copy=False)) must not
@@ -808,7 +1016,7 @@ def check_gnss_kf_gaps(run_gnss_kf_gaps):
         for value, ref, what in ((x_res, x_ref, "x_hat"), (P_res, P_ref, "P_hat")):
             arr = as_array(value, what)
             if arr.ndim == ref.ndim and arr.shape[1:] == ref.shape[1:] and arr.shape[0] != N:
-                raise CheckFailed(f"{what} on the '{name}' excerpt has {arr.shape[0]} rows for {N} "
+                raise CheckFailed(f"{what} on {excerpt} has {arr.shape[0]} rows for {N} "
                                   f"times ({len(missing)} fixes missing). Hint: one row per time "
                                   "t[k], also where the fix is missing: there the row is the "
                                   "estimate without that fix")
@@ -817,14 +1025,14 @@ def check_gnss_kf_gaps(run_gnss_kf_gaps):
                 why = (f"fix {row} is missing (NaN) and an update with it makes the state NaN from "
                        "there on: skip the update where y[k] is all NaN (the posterior is then the "
                        "prior)" if row in missing else "check the steps around it")
-                raise CheckFailed(f"{what} on the '{name}' excerpt contains NaN from row {row} on. "
+                raise CheckFailed(f"{what} on {excerpt} contains NaN from row {row} on. "
                                   f"Hint: {why}")
         x_hat = expect_shape(x_res, x_ref.shape, "x_hat")
         P_hat = expect_shape(P_res, P_ref.shape, "P_hat")
         if _same_run(x_hat, P_hat, x_ref, P_ref):
             continue
         _reject_known_run_mistakes(x_hat, P_hat, y, sigma_gnss, _gaps_mistakes(t, y, sigma_a, sigma_gnss),
-                                   f"the '{name}' excerpt with missing fixes")
+                                   f"{excerpt} with missing fixes")
         wrong_rows = [k for k in range(N) if not _same_run(x_hat[k], P_hat[k], x_ref[k], P_ref[k])]
         first = wrong_rows[0]
         where = (f"row {first} is a missing fix: there the posterior is the prior, predicted to "
@@ -835,8 +1043,8 @@ def check_gnss_kf_gaps(run_gnss_kf_gaps):
                                                ": before the first missing fix the run is "
                                                "run_gnss_kf's, a prediction over the step's own "
                                                "time step t[k] − t[k−1] and an update with y[k]"))
-        expect_close(x_hat, x_ref, f"x_hat on the '{name}' excerpt with missing fixes", rtol=1e-6,
+        expect_close(x_hat, x_ref, f"x_hat on {excerpt} with missing fixes", rtol=1e-6,
                      atol=1e-6, hint=f"the first wrong row is {first}; {where}")
-        expect_close(P_hat, P_ref, f"P_hat on the '{name}' excerpt with missing fixes", rtol=1e-6,
+        expect_close(P_hat, P_ref, f"P_hat on {excerpt} with missing fixes", rtol=1e-6,
                      atol=1e-9, hint=f"x_hat is right but P_hat is not; the first wrong row is "
                                      f"{first}; {where}")

@@ -223,7 +223,7 @@ MUTANTS = [
     Edit("gnss_kf_run", P0, "P = np.diag(np.r_[np.full(3, sigma_gnss**2), np.full(3, 1e-4)])",
          keyword="initial velocity variance", mistake="a tiny start-velocity variance (the stub)"),
     Edit("gnss_kf_run", P0, "P = np.diag(np.r_[np.full(3, sigma_gnss), np.full(3, sigma_v0**2)])",
-         keyword="standard deviation σ = 1.6", mistake="initial position covariance σ, not σ²"),
+         keyword="position variance must be σ²", mistake="initial position covariance σ, not σ²"),
     Edit("gnss_kf_run", P0, "P = np.diag(np.r_[np.full(3, sigma_gnss**2), np.full(3, sigma_v0)])",
          keyword="standard deviation σ = 15", mistake="initial velocity covariance σ_v0, not σ_v0²"),
     Edit("gnss_kf_run", P0, "P = np.diag(np.r_[np.full(3, 1.0), np.full(3, sigma_v0**2)])",
