@@ -65,7 +65,7 @@ TWINS: dict[str, tuple[str, ...]] = {
     "ekf_update": ("kalman_course.filters.ekf.ekf_update",),
     "iekf_update": ("kalman_course.filters.ekf.iekf_update",),
     "eskf_error_dynamics": ("kalman_course.filters.eskf.error_dynamics",),
-    "eskf_noise_jacobian": ("kalman_course.filters.eskf.noise_jacobian",),
+    "eskf_noise_jacobian": ("kalman_course.filters.eskf.noise_jacobian", "kalman_course.filters.eskf._noise_jacobian"),
     "eskf_discretisation": ("kalman_course.filters.eskf.discretise", "kalman_course.filters.eskf._discretise"),
     "eskf_propagate": ("kalman_course.filters.eskf.propagate_covariance",),
     "eskf_pose_residual": ("kalman_course.filters.eskf.pose_residual", "kalman_course.filters.eskf._pose_residual"),
