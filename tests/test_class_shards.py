@@ -88,6 +88,7 @@ def test_one_run_reports_the_broken_notebook_and_signs_its_gradebook(graded):
     document = json.loads(outputs["grades.json"])
     assert document["signature"] == gradebook.signature(document, KEY.encode())
     assert [learner for learner, _ in document["run"]["class"]] == ["alice", "alice", "bob", "dave"]
+    assert document["run"]["seed"] == int(SEED), "the gradebook must record the run seed"
 
 
 def test_github_actions_matrix_and_merge_give_the_single_runs_gradebook(graded):

@@ -7,6 +7,8 @@ import pytest
 
 from kalman_course.tooling import cli, gradebook, grading
 
+from conftest import ROOT
+
 SUBCOMMANDS = [[], ["execute"], ["build"], ["grade"], ["merge"], ["export"], ["bench"], ["data"], ["data", "build"]]
 
 
@@ -26,11 +28,22 @@ def test_help_texts_have_no_markup(words, capsys):
     (["grade", "--shard", "3/2"], "argument --shard: expected K/N with 1 <= K <= N, got '3/2'"),
     (["grade", "--shard", "half"], "argument --shard: expected K/N (shard K of N), got 'half'"),
     (["execute", "x.ipynb", "--timeout", "0"], "argument --timeout: expected a number greater than 0, got '0'"),
+    (["grade", "--seed", "-3"], "argument --seed: expected an integer in [0, 2**63), got '-3'"),
+    (["grade", "--seed", str(2**63)], "argument --seed: expected an integer in [0, 2**63)"),
+    (["grade", "--seed", "0x10"], "argument --seed: expected an integer, got '0x10'"),
 ])
 def test_option_values_are_checked_with_a_clear_message(argv, message, capsys):
     with pytest.raises(SystemExit) as done:
         cli.main(argv)
     assert done.value.code == 2 and message in capsys.readouterr().err
+
+
+def test_a_shard_without_a_seed_is_refused_with_one_to_use(tmp_path, capsys):
+    (tmp_path / "class").mkdir()
+    assert cli.main(["grade", str(tmp_path / "class"), "--release", str(ROOT / "exercises"), "--shard", "1/2",
+                     "--no-sandbox"]) == 2
+    err = capsys.readouterr().err
+    assert "pass every shard the same --seed (for instance --seed " in err
 
 
 def test_outside_the_repository_errors_are_one_line_not_tracebacks(tmp_path):

@@ -168,6 +168,8 @@ FORGERIES = {
     "interrupted": (2, lambda d: d["run"].update(interrupted=True), True, r"shard-3\.json: the run .* was interrupted"),
     "another sandbox": (2, lambda d: d["run"].update(sandbox="none (--no-sandbox)"), True,
                         r"shard-3\.json was graded with sandbox 'none \(--no-sandbox\)'"),
+    "another run seed": (1, lambda d: d["run"].update(seed=SEED + 1), True,
+                         rf"shard-2\.json was graded with seed {SEED + 1}, .*shard-1\.json with {SEED}"),
 }
 
 

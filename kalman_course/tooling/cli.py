@@ -76,6 +76,11 @@ def _cmd_build(args: argparse.Namespace) -> int:
 def _cmd_grade(args: argparse.Namespace) -> int:
     from kalman_course.tooling import gradebook, grading
 
+    if args.seed is None and args.shard:
+        print(f"error: the shards of a class must draw the same check inputs: pass every shard the same "
+              f"--seed (for instance --seed {secrets.randbits(63)})", file=sys.stderr)
+        return 2
+
     submissions = []
     for item in args.paths:
         root = Path(item)
@@ -107,10 +112,6 @@ def _cmd_grade(args: argparse.Namespace) -> int:
     from kalman_course.checks import cases
     from kalman_course.tooling import sealed
 
-    if args.seed is None and args.shard:
-        print(f"error: the shards of a class must draw the same check inputs: pass every shard the same "
-              f"--seed (for instance --seed {secrets.randbits(63)})", file=sys.stderr)
-        return 2
     args.seed = secrets.randbits(63) if args.seed is None else args.seed
     cases.set_run_seed(args.seed)  # before the preload computes the checks' cases
     sealed.preload(_checks_of(submissions, release))  # nothing is imported once a learner's kernel runs
