@@ -8,6 +8,16 @@ turn rates towards ω = 0 — just above and below the lecture's switch to the s
 quadrants and near ±π. The sweep is where lecture 04's failure lives: the closed form
 subtracts two nearly equal sines and divides by a tiny ω, so code that branches on
 ``omega != 0`` is fine at ω = 0 and at real turn rates and wrong in between.
+
+Under a graded run's seed (:mod:`kalman_course.checks.cases`) the cases are drawn anew from
+the same families: other KITTI states (the hardest-turning one of each excerpt stays, at other
+steps), the two steps T (0.05–0.3 s and 0.7–1.5 s, log-uniform), the sweep's headings (in the
+same quadrants, π − 10^-U(2, 6) and −10^-U(1, 3) next to ±π and 0) and its turn rates (the
+switch at |ω T| = THRESHOLD · (1 ± 10^-U(4, 7)), each rate of the sweep within a factor 10^±0.25
+of its fixed value, the one just above |ω| = 1e-6 kept just above it); the process noise's
+three (T, σ_a, σ_ψ̈) settings (T below 1, around 1 and above 2, each σ on the fixed one's side
+of 1) and its four headings (one per quadrant, at least 0.2 rad from the diagonals, where
+cos ψ and sin ψ would agree in size).
 """
 
 from __future__ import annotations
@@ -17,6 +27,7 @@ import functools
 import numpy as np
 
 from kalman_course import symbolic
+from kalman_course.checks import cases as inputs  # `cases` names the lists of cases below
 from kalman_course.core.angles import wrap_angle
 from kalman_course.checks.harness import CheckFailed, as_array, call, check, expect_close, expect_shape
 from kalman_course.chapters.motion import kitti_model_states
@@ -83,22 +94,55 @@ def kitti_ctrv_cases(count: int = 3, seed: int = 4):
     first two of them driving straight (ω = 0), then the ω sweep on two further KITTI states
     at the headings of ``SWEEP_HEADINGS``. The references are computed once.
     """
-    rng = np.random.default_rng(seed)
+    rng = inputs.rng("motion.ctrv", seed)
+    steps = inputs.fixed_or_drawn(STEPS, _drawn_steps, "motion.steps")
+    fractions, sweep_rates, headings = inputs.fixed_or_drawn((SWITCH_FRACTIONS, SWEEP_RATES, SWEEP_HEADINGS),
+                                                             _drawn_sweep, "motion.sweep")
     turning = _kitti_states(count, rng)
-    states = [(x, T) for x in turning for T in STEPS]
+    states = [(x, T) for x in turning for T in steps]
     for x in turning[:2]:
         straight = x.copy()
         straight[4] = 0.0
-        states += [(straight, T) for T in STEPS]
+        states += [(straight, T) for T in steps]
     base = _kitti_states(1, rng)
-    for T in STEPS:
-        rates = [THRESHOLD / T * f for f in SWITCH_FRACTIONS] + list(SWEEP_RATES)
+    for T in steps:
+        rates = [THRESHOLD / T * f for f in fractions] + list(sweep_rates)
         for k, om in enumerate(rates):
             x = base[k % 2].copy()
-            x[3] = SWEEP_HEADINGS[k % 3][(k // 3) % 2]
+            x[3] = headings[k % 3][(k // 3) % 2]
             x[4] = om
             states.append((x, T))
     return tuple((x, T, symbolic.ctrv_step(x, T), symbolic.ctrv_jacobian(x, T)) for x, T in states)
+
+
+def _drawn_steps(rng) -> tuple:
+    """(short, long) steps of a graded run: 0.05–0.3 s and 0.7–1.5 s. The long one stays below
+    2 s, where the straight line at |ω| ≤ 1e-6 (a correct first-order limit) would err by more
+    than the tolerance; the short one keeps |ω T| small enough at |ω| = 1e-6 for the closed
+    form's Jacobian to lose its digits there."""
+    return (float(inputs.log_uniform(rng, 0.05, 0.3)), float(inputs.log_uniform(rng, 0.7, 1.5)))
+
+
+def _drawn_sweep(rng) -> tuple:
+    """(switch fractions, sweep rates, sweep headings) like the fixed ones, drawn.
+
+    The fractions stay just either side of the switch; each rate keeps its sign and decade
+    (a factor 10^±0.25), so that every regime of the fixed sweep is met: the one just above
+    1e-6 rad/s, where code switching to the limit at |ω| = 1e-6 still takes the closed form, is
+    1e-6 · (1 + U(0.005, 0.05)). The headings are in the fixed ones' quadrants, two of them
+    next to ±π and one next to 0.
+    """
+    fractions = (1.0 + 10.0 ** -rng.uniform(4.0, 7.0), -(1.0 - 10.0 ** -rng.uniform(4.0, 7.0)))
+    rates = []
+    for rate in SWEEP_RATES:
+        if abs(rate) == 1.01e-6:
+            rates.append(float(np.sign(rate) * 1e-6 * (1.0 + rng.uniform(0.005, 0.05))))
+        else:
+            rates.append(float(rate * 10.0 ** rng.uniform(-0.25, 0.25)))
+    headings = ((rng.uniform(0.1, 1.4), -np.pi + 10.0 ** -rng.uniform(1.0, 3.0)),
+                (rng.uniform(1.7, 3.0), -rng.uniform(0.2, 1.4)),
+                (np.pi - 10.0 ** -rng.uniform(2.0, 6.0), -(10.0 ** -rng.uniform(1.0, 3.0))))
+    return fractions, tuple(rates), headings
 
 
 def _where(x, T) -> str:
@@ -377,15 +421,40 @@ def _noise_cases():
     speed and gyro turn rate real) at the headings of :data:`NOISE_HEADINGS`, for every
     setting of :data:`NOISE_SETTINGS`."""
     turning = [x for x, T, _, _ in kitti_ctrv_cases()[::len(STEPS)]][:2]
+    settings = inputs.fixed_or_drawn(NOISE_SETTINGS, _drawn_noise_settings, "motion.noise.settings")
+    headings = inputs.fixed_or_drawn(NOISE_HEADINGS, _drawn_noise_headings, "motion.noise.headings")
     cases = []
-    for T, sigma_a, sigma_yaw in NOISE_SETTINGS:
-        for k, psi in enumerate(NOISE_HEADINGS):
+    for T, sigma_a, sigma_yaw in settings:
+        for k, psi in enumerate(headings):
             x = turning[k % 2].copy()
             x[3] = psi
             x.flags.writeable = False
             cases.append((x, T, sigma_a, sigma_yaw,
                           symbolic.motion_process_noise("ctrv", x, T, (sigma_a, sigma_yaw))))
     return tuple(cases)
+
+
+def _drawn_noise_settings(rng) -> tuple:
+    """Three (T, σ_a, σ_ψ̈) like :data:`NOISE_SETTINGS`: T below 1, around it and above 2 (never
+    2, where T²/2 = T), each σ on its fixed counterpart's side of 1 and σ_a ≠ σ_ψ̈."""
+    def lu(low, high):
+        return float(inputs.log_uniform(rng, low, high))
+
+    return ((lu(0.05, 0.3), lu(2.0, 5.0), lu(0.15, 0.5)), (lu(0.5, 1.5), lu(0.3, 0.8), lu(1.3, 3.0)),
+            (lu(2.3, 3.5), lu(1.2, 2.5), lu(0.2, 0.7)))
+
+
+def _drawn_noise_headings(rng) -> tuple:
+    """One heading per quadrant, in the fixed order (first, second, third, fourth), at least
+    0.15 rad from the axes and 0.2 rad from the diagonals (where |cos ψ| = |sin ψ| and a
+    swapped cos/sin would agree)."""
+    headings = []
+    for start in (0.0, np.pi / 2, -np.pi, -np.pi / 2):
+        offset = rng.uniform(0.15, np.pi / 2 - 0.15)
+        while abs(offset - np.pi / 4) < 0.2:
+            offset = rng.uniform(0.15, np.pi / 2 - 0.15)
+        headings.append(float(start + offset))
+    return tuple(headings)
 
 
 def _noise_jacobian(T, heading, half=0.5, rate=None):
