@@ -10,6 +10,18 @@ pieces, so that the lecture's first-order forms (accepted by their own checks) a
 in the run too, and a mistake made in the run itself (a dropped reset, σ for σ², degrees
 for radians, no update at all, the prior stored for the posterior, ...) is named.
 
+Under a graded run's seed (:mod:`kalman_course.checks.cases`) every case is drawn anew from
+its family. Real: the KITTI ``turns`` samples of the states (other samples, with other
+drawn tilts and biases) and, for the whole run, the real IMU readings and ground truth of a
+drawn window of ``turns`` (3–5 s, no longer than the fixed 5 s, starting at a drawn truth
+pose). Simulated: the run's lidar poses (the excerpt's noise model, another noise seed); the
+attitude errors of the residual and injection cases (sizes drawn in the same four bands,
+3e-3 … 5e-2 rad); the time steps of the discretisation, propagation and challenge cases; the
+dense covariances P and the correlated R of the gain and update cases (the lidar σ drawn
+around the course's and the GNSS σ on both sides of 1 m), the sub-optimal gain's factor; the
+reset's δx̂ (three sizes, |δθ̂| ≤ 0.09 rad); and the quaternion pairs of the nominal-state
+EKF (attitudes at 0, in the middle and 10⁻³ … 3·10⁻² rad short of π, and a pair across π).
+
 The exercise's whole-step placeholders are recognised and named: a covariance returned
 unpropagated, a nominal state returned uninjected, a run that never uses its lidar poses, and
 (in the optional challenge) a finite-difference Jacobian left at zero. The accelerometer noise
@@ -38,6 +50,7 @@ Tolerances (and why)
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 import io
 
@@ -47,9 +60,10 @@ from kalman_course.filters import eskf
 from kalman_course.core import so3
 from kalman_course.core.linalg import expm, symmetrise
 from kalman_course.evaluation.metrics import position_rmse
+from kalman_course.checks import cases as inputs
 from kalman_course.checks.harness import CheckFailed, call, check, expect_close, expect_shape, expect_symmetric
 from kalman_course.checks.harness import learner_namespace, upstream_failure
-from kalman_course.data import load_kitti
+from kalman_course.data import TruthData, load_kitti, simulate_lidar_poses
 from kalman_course.filters.eskf import NominalState
 from kalman_course.filters.eskf_config import load_config
 
@@ -70,7 +84,7 @@ _NOMINAL = (("p", 0, 3), ("v", 3, 6), ("q", 6, 10), ("b_a", 10, 13), ("b_ω", 13
 def _cases(count: int = 4, seed: int = 8):
     """(nominal state, f, ω) from KITTI truth and readings, with non-zero biases."""
     ex = load_kitti("turns")
-    rng = np.random.default_rng(seed)
+    rng = inputs.rng("eskf.states", seed)   # under a run seed: other samples, tilts and biases
     out = []
     for k in rng.choice(np.arange(100, len(ex.imu) - 100), size=count, replace=False):
         nav = ex.truth.state_at(float(ex.imu.t[k]))
@@ -79,6 +93,26 @@ def _cases(count: int = 4, seed: int = 8):
                          rng.normal(size=3) * 0.05, rng.normal(size=3) * 0.005)
         out.append((x, ex.imu.specific_force[k].copy(), ex.imu.angular_rate[k].copy()))
     return tuple(out)
+
+
+@functools.lru_cache(maxsize=None)
+def _attitude_scales():
+    """The sizes (rad, per axis) of the attitude errors of the residual and injection cases,
+    one per state of :func:`_cases`: a spread over 3e-3 … 5e-2, drawn in the same bands."""
+    bands = ((0.005, 0.015), (0.002, 0.005), (0.015, 0.03), (0.03, 0.05))
+    return inputs.fixed_or_drawn((0.01, 0.003, 0.03, 0.05),
+                                 lambda rng: tuple(float(inputs.log_uniform(rng, *b)) for b in bands),
+                                 "eskf.attitude_scales")
+
+
+@functools.lru_cache(maxsize=None)
+def _steps():
+    """Time steps (s): the discretisation's (random walk, then constant bias), the propagation's
+    (one per state of :func:`_cases`) and the challenge's."""
+    def draw(rng):
+        return (tuple(inputs.log_uniform(rng, 0.002, 0.02, 2)), (float(inputs.log_uniform(rng, 0.002, 0.02)),),
+                tuple(inputs.log_uniform(rng, 0.004, 0.02, 4)), float(rng.uniform(0.01, 0.02)))
+    return inputs.fixed_or_drawn(((0.01, 0.004), (0.01,), (0.01,) * 4, 0.01), draw, "eskf.steps")
 
 
 def _error(nom, true):
@@ -279,7 +313,7 @@ def check_eskf_discretisation(discretise):
         F_t = eskf.error_dynamics(x.rotation, f, w, x.accel_bias, x.gyro_bias)
         for model in ("random_walk", "constant"):
             B_t = eskf.noise_jacobian(x.rotation, model)
-            for T in ((0.01, 0.004) if model == "random_walk" else (0.01,)):
+            for T in _steps()[0 if model == "random_walk" else 1]:
                 result = call(discretise, F_t, B_t, T)
                 if not isinstance(result, (tuple, list)) or len(result) != 2:
                     raise CheckFailed("discretise must return a tuple (F, B)")
@@ -320,16 +354,24 @@ def check_eskf_discretisation(discretise):
                 ], hint="B = B_t with the n_a, n_ω columns × T and the bias columns × √T")
 
 
-@check
-def check_eskf_propagate(propagate_covariance):
-    """``propagate_covariance(P, F, B, Q)`` returns P̌ (15, 15), symmetric positive definite."""
-    rng = np.random.default_rng(2)
-    for x, f, w in _cases():
+@functools.lru_cache(maxsize=None)
+def _propagate_cases():
+    """(P, F, B, Q): a dense P and the transition and noise of one step from each state."""
+    rng = inputs.rng("eskf.propagate", 2)
+    out = []
+    for (x, f, w), T in zip(_cases(), _steps()[2]):
         A = rng.normal(size=(15, 15)) * 0.1
         P = A @ A.T + 1e-4 * np.eye(15)
         F, B = eskf.discretise(eskf.error_dynamics(x.rotation, f, w, x.accel_bias, x.gyro_bias),
-                               eskf.noise_jacobian(x.rotation), 0.01)
-        Q = eskf.process_noise(DENSITY, 0.01)
+                               eskf.noise_jacobian(x.rotation), T)
+        out.append((P, F, B, eskf.process_noise(DENSITY, T)))
+    return tuple(out)
+
+
+@check
+def check_eskf_propagate(propagate_covariance):
+    """``propagate_covariance(P, F, B, Q)`` returns P̌ (15, 15), symmetric positive definite."""
+    for P, F, B, Q in _propagate_cases():
         got = expect_shape(call(propagate_covariance, P, F, B, Q), (15, 15), "P_check")
         ref = eskf.propagate_covariance(P, F, B, Q)
         noise = B @ Q @ B.T
@@ -356,6 +398,17 @@ def _attitude_tolerance(dtheta) -> float:
     return float(np.dot(dtheta, dtheta)) + 1e-12
 
 
+@functools.lru_cache(maxsize=None)
+def _residual_cases():
+    """(nominal state, p_meas, R_meas): a measured pose near each state."""
+    rng = inputs.rng("eskf.residual", 3)
+    out = []
+    for (x, _, _), scale in zip(_cases(), _attitude_scales()):
+        p_m = x.position + rng.normal(size=3) * 0.2
+        out.append((x, p_m, x.rotation @ so3.exp(rng.normal(size=3) * scale)))
+    return tuple(out)
+
+
 @check
 def check_eskf_pose_residual(pose_residual):
     """``pose_residual(p_check, R_check, p_meas, R_meas)`` returns y (6,).
@@ -363,10 +416,7 @@ def check_eskf_pose_residual(pose_residual):
     The attitude part is accepted within |δθ|² of Log(R_measᵀ Ř): the lecture's first-order
     δθ = (R_measᵀ Ř − I)^∨ passes; sign, frame and order mistakes err by O(|δθ|).
     """
-    rng = np.random.default_rng(3)
-    for (x, _, _), scale in zip(_cases(), (0.01, 0.003, 0.03, 0.05)):
-        p_m = x.position + rng.normal(size=3) * 0.2
-        R_m = x.rotation @ so3.exp(rng.normal(size=3) * scale)
+    for x, p_m, R_m in _residual_cases():
         got = expect_shape(call(pose_residual, x.position, x.rotation, p_m, R_m), (6,), "y")
         ref = eskf.pose_residual(x.position, x.rotation, p_m, R_m)
         dth = ref[3:]
@@ -395,24 +445,45 @@ def check_eskf_pose_residual(pose_residual):
 
 
 def _update_case(seed=4):
-    rng = np.random.default_rng(seed)
+    """(P, G, R) of a lidar pose: a dense prior P, and R of σ_p = 0.2 m, σ_θ = 0.3° (under a run
+    seed: P drawn anew, σ_p in 0.05 … 0.5 m and σ_θ in 0.1 … 1°)."""
+    rng = inputs.rng("eskf.update", seed)
     A = rng.normal(size=(15, 15)) * 0.05
     P = A @ A.T + np.diag(np.r_[np.full(3, 0.04), np.full(3, 0.01), np.full(3, 1e-4), np.full(3, 4e-4), np.full(3, 1e-6)])
-    R = np.diag(np.r_[np.full(3, 0.04), np.full(3, np.deg2rad(0.3) ** 2)])
+    var_p, sigma_deg = 0.04, 0.3
+    if inputs.drawing():     # drawn after P, so that the fixed stream stays as it was
+        var_p, sigma_deg = inputs.log_uniform(rng, 0.05, 0.5) ** 2, inputs.log_uniform(rng, 0.1, 1.0)
+    R = np.diag(np.r_[np.full(3, var_p), np.full(3, np.deg2rad(sigma_deg) ** 2)])
     return P, eskf.POSE_G.copy(), R
 
 
+def _gnss_variances(rng):
+    """GNSS variances (3,) under a run seed: σ from 0.3 to 2 m, some below and some above 1."""
+    while True:
+        sigma = inputs.log_uniform(rng, 0.3, 2.0, 3)
+        if sigma.min() < 0.9 and sigma.max() > 1.1:   # both sides of 1, where R, √R and R² part
+            return sigma ** 2
+
+
+@functools.lru_cache(maxsize=None)
 def _gain_cases():
     """(P, G, R): the lidar pose with diagonal and with correlated R, and a GNSS position fix."""
     out = []
     for seed in (4, 5):
         out.append(_update_case(seed))
     P, G, R = _update_case(6)
-    C = np.random.default_rng(16).normal(size=(6, 6)) * 0.02
+    C = inputs.rng("eskf.gain.correlation", 16).normal(size=(6, 6)) * 0.02
     out.append((P, G, R + C @ C.T))                                  # non-diagonal SPD R
     P, _, _ = _update_case(7)
-    out.append((P, eskf.POSITION_G.copy(), np.diag([0.09, 0.25, 0.64])))   # GNSS: G (3, 15)
-    return out
+    gnss = inputs.fixed_or_drawn(np.array([0.09, 0.25, 0.64]), _gnss_variances, "eskf.gain.gnss")
+    out.append((P, eskf.POSITION_G.copy(), np.diag(gnss)))          # GNSS: G (3, 15)
+    return tuple(out)
+
+
+@functools.lru_cache(maxsize=None)
+def _suboptimal_factor() -> float:
+    """The factor of the sub-optimal gain c K of the update check (0.7; drawn in 0.3 … 0.9)."""
+    return inputs.fixed_or_drawn(0.7, lambda rng: float(rng.uniform(0.3, 0.9)), "eskf.update.factor")
 
 
 @check
@@ -450,7 +521,8 @@ def check_eskf_covariance_update(update_covariance):
     for P, G, R in _gain_cases():
         n = P.shape[0]
         K_opt = eskf.kalman_gain(P, G, R)
-        for K, label in ((K_opt, "the optimal gain"), (0.7 * K_opt, "a sub-optimal gain 0.7 K")):
+        c = _suboptimal_factor()
+        for K, label in ((K_opt, "the optimal gain"), (c * K_opt, f"a sub-optimal gain {c:.2g} K")):
             got = expect_shape(call(update_covariance, P, K, G, R), (n, n), f"P_hat with {label}")
             ref = eskf.update_covariance(P, K, G, R)
             if _close(got, ref, 1e-14, 1e-8):
@@ -483,6 +555,20 @@ def _rotation_error(R, R_ref) -> float:
     return float(np.linalg.norm(so3.log(so3.orthonormalise(R_ref.T @ R))))
 
 
+@functools.lru_cache(maxsize=None)
+def _inject_cases():
+    """(true state, nominal state, δx): nominal = true with the error δx, at each state."""
+    rng = inputs.rng("eskf.inject", 6)
+    out = []
+    for (true, _, _), scale in zip(_cases(), _attitude_scales()):
+        dx = np.r_[rng.normal(size=3) * 0.2, rng.normal(size=3) * 0.05, rng.normal(size=3) * scale,
+                   rng.normal(size=3) * 0.01, rng.normal(size=3) * 1e-3]
+        nom = NominalState(true.position + dx[0:3], true.velocity + dx[3:6], true.rotation @ so3.exp(dx[6:9]),
+                           true.accel_bias + dx[9:12], true.gyro_bias + dx[12:15])
+        out.append((true, nom, dx))
+    return tuple(out)
+
+
 @check
 def check_eskf_inject(inject):
     """``inject(nominal, dx)`` removes the estimated error: returns the corrected NominalState.
@@ -490,12 +576,7 @@ def check_eskf_inject(inject):
     The rotation is accepted within |δθ|² (angle) of Ř Exp(−δθ): the lecture's first-order
     Ř (I − [δθ]×), re-orthonormalised, passes; sign and side mistakes err by O(|δθ|).
     """
-    rng = np.random.default_rng(6)
-    for (true, _, _), scale in zip(_cases(), (0.01, 0.003, 0.03, 0.05)):
-        dx = np.r_[rng.normal(size=3) * 0.2, rng.normal(size=3) * 0.05, rng.normal(size=3) * scale,
-                   rng.normal(size=3) * 0.01, rng.normal(size=3) * 1e-3]
-        nom = NominalState(true.position + dx[0:3], true.velocity + dx[3:6], true.rotation @ so3.exp(dx[6:9]),
-                           true.accel_bias + dx[9:12], true.gyro_bias + dx[12:15])
+    for true, nom, dx in _inject_cases():
         got = call(inject, nom, dx)
         for field in ("position", "velocity", "rotation", "accel_bias", "gyro_bias"):
             if not hasattr(got, field):
@@ -546,6 +627,24 @@ def check_eskf_inject(inject):
                           "Hint: R̂ = Ř Exp(−δθ)")
 
 
+@functools.lru_cache(maxsize=None)
+def _reset_case():
+    """(P, the δx̂ of three resets): |δθ̂| of about 5e-3, 3e-2 and 8e-2 rad (drawn in bands
+    around them, each redrawn until |δθ̂| ≤ 0.09, which keeps the sign mistake 10 tolerances off)."""
+    rng = inputs.rng("eskf.reset", 7)
+    P, _, _ = _update_case(9)
+    scales = inputs.fixed_or_drawn((3e-3, 2e-2, 5e-2), lambda r: tuple(
+        float(inputs.log_uniform(r, *band)) for band in ((2e-3, 5e-3), (1e-2, 3e-2), (3e-2, 5e-2))),
+        "eskf.reset.scales")
+    steps = []
+    for scale in scales:
+        dx = np.r_[rng.normal(size=6) * 0.1, rng.normal(size=3) * scale, rng.normal(size=6) * 1e-3]
+        while inputs.drawing() and np.linalg.norm(dx[6:9]) > 0.09:
+            dx = np.r_[rng.normal(size=6) * 0.1, rng.normal(size=3) * scale, rng.normal(size=6) * 1e-3]
+        steps.append(dx)
+    return P, tuple(steps)
+
+
 @check
 def check_eskf_reset(reset_covariance):
     """``reset_covariance(P, dx)`` returns G P Gᵀ with the reset Jacobian of this convention.
@@ -554,16 +653,14 @@ def check_eskf_reset(reset_covariance):
     |δθ̂|² max|P[6:9]| of the exact result (|δθ̂| ≤ 0.09 here, so a sign mistake, off by
     about |δθ̂| max|P[6:9]|, stays at least 10 times outside).
     """
-    rng = np.random.default_rng(7)
-    P, _, _ = _update_case(9)
+    P, steps = _reset_case()
 
     def sandwich(block, rows=slice(6, 9)):
         G = np.eye(15)
         G[rows, rows] = block
         return symmetrise(G @ P @ G.T), G
 
-    for scale in (3e-3, 2e-2, 5e-2):
-        dx = np.r_[rng.normal(size=6) * 0.1, rng.normal(size=3) * scale, rng.normal(size=6) * 1e-3]
+    for dx in steps:
         th = dx[6:9]
         got = expect_shape(call(reset_covariance, P, dx), (15, 15), "P after reset")
         exact = eskf.reset_covariance(P, dx, exact=True)
@@ -785,7 +882,7 @@ def _failing_piece(namespace) -> str:
         return upstream
     pn = namespace.get("process_noise")
     if callable(pn):
-        for T in (0.01, 0.004):
+        for T in _steps()[0]:
             got = call(pn, DENSITY, T)
             ref = eskf.process_noise(DENSITY, T)
             if not _close(np.asarray(got, dtype=float) if np.shape(got) == ref.shape else np.zeros(0), ref, 1e-15, 1e-9):
@@ -811,13 +908,77 @@ def _diagnose_crash(run_eskf, ex, t_end, cfg, message: str) -> str:
     return ""
 
 
+def _window(ex, first: int, seconds: float, lidar_seed: int):
+    """``ex`` seen from its truth pose ``first`` on (so that ``initial_state`` starts there), with
+    its lidar poses simulated anew (the excerpt's white-noise σ, another seed); and t_end."""
+    tr = ex.truth
+    truth = TruthData(tr.t[first:], tr.position[first:], tr.velocity[first:], tr.quaternion[first:],
+                      tr.rotation[first:])
+    lidar = simulate_lidar_poses(tr, lidar_seed, ex.lidar.sigma_position, ex.lidar.sigma_attitude_deg)
+    window = dataclasses.replace(ex, truth=truth, lidar=lidar)
+    k0, _ = window.initial_state()
+    return window, float(window.imu.t[k0] + seconds)
+
+
+@functools.lru_cache(maxsize=None)
+def _run_case():
+    """(excerpt, t_end, what: the run in words) of the whole-run check.
+
+    Fixed: the first RUN_SECONDS of the excerpt. Under a run seed: a window of the same real
+    IMU readings and truth, 3 s … RUN_SECONDS long (never longer: the check runs the filter
+    several times), from a drawn truth pose, with the lidar poses simulated from another seed.
+    """
+    ex = load_kitti(RUN_EXCERPT)
+    if not inputs.drawing():
+        k0, _ = ex.initial_state()
+        return ex, float(ex.imu.t[k0] + RUN_SECONDS), f"the first {RUN_SECONDS:.0f} s of '{RUN_EXCERPT}'"
+    rng = inputs.rng("eskf.run")
+    cfg = load_config("kitti_lidar")
+    while True:
+        seconds = float(rng.uniform(0.8 * RUN_SECONDS, RUN_SECONDS))
+        last = int(np.searchsorted(ex.truth.t, ex.truth.t[-1] - seconds - 1.0))   # room to run, and a margin
+        seed = int(rng.integers(10_000, 2**31))
+        window, t_end = _window(ex, int(rng.integers(1, last)), seconds, seed)
+        if _bias_noise_shows(window, t_end, cfg):
+            break
+    start = t_end - seconds
+    return window, t_end, (f"{seconds:.2f} s of '{RUN_EXCERPT}' from τ = {start:.2f} s "
+                           f"(lidar noise seed {seed})")
+
+
+def _bias_noise_shows(ex, t_end, cfg, margin: float = 1.5) -> bool:
+    """Whether the run on ``ex`` tells the bias random walks' noise σ² T from σ² T² (a bias column
+    of B scaled by T, or the bias variances of Q multiplied by T) by ``margin`` times the run's
+    tolerances. Of the run's mistakes this one changes it least (about as much as no bias noise
+    at all): a window where it shows keeps every listed mistake apart from the reference."""
+    def bias_noise_times_T(density, T, model="random_walk"):
+        Q = eskf.process_noise(density, T, model).copy()
+        Q[6:, 6:] *= T
+        return Q
+
+    pieces = _learner_pieces({})
+    ref = _drive(pieces, ex, t_end, cfg)
+    wrong = _drive(dict(pieces, process_noise=bias_noise_times_T), ex, t_end, cfg)
+    return _run_gap(wrong, ref) >= margin
+
+
+def _run_gap(result, other) -> float:
+    """How far a run is from ``other`` in units of :func:`_same_run`'s tolerances (> 1: told apart)."""
+    gaps = []
+    for a, b, atol, rtol in zip(result, other, (1e-9, 1e-6, 1e-6, 5e-9), (0.0, 0.0, 0.0, 1e-3)):
+        a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+        if a.shape != b.shape:
+            return np.inf
+        gaps.append(float(np.max(np.abs(a - b) / (atol + rtol * np.abs(b)))))
+    return max(gaps)
+
+
 @check
 def check_eskf_run(run_eskf):
     """``run_eskf(ex, t_end, cfg)`` returns (t, positions, rotations, P) at the lidar times."""
-    ex = load_kitti(RUN_EXCERPT)
+    ex, t_end, window = _run_case()
     cfg = load_config("kitti_lidar")
     k0, s0 = ex.initial_state()
-    t_end = float(ex.imu.t[k0] + RUN_SECONDS)
     try:
         result = call(run_eskf, ex, t_end, cfg)
     except CheckFailed as exc:          # the run crashed: a wrong piece, or a mistake that diverges
@@ -843,7 +1004,7 @@ def check_eskf_run(run_eskf):
         raise CheckFailed(why)
     truth = ex.truth.position[np.searchsorted(ex.truth.t, ref.t - 1e-6)]
     err, err_ref = position_rmse(p, truth), position_rmse(ref.position, truth)
-    what = f"the run on the first {RUN_SECONDS:.0f} s of '{RUN_EXCERPT}'"
+    what = f"the run on {window}"
     if why:
         raise CheckFailed(f"{what} is wrong (position RMSE {err:.4f} m, reference {err_ref:.4f} m). Hint: {why}")
     expect_close(t, ref.t, "the update times", atol=1e-9,
@@ -861,6 +1022,40 @@ def check_eskf_run(run_eskf):
 # Bonus: the nominal-state EKF
 # ---------------------------------------------------------------------------------------
 
+def _fixed_quaternion_angles():
+    """The self-check's attitude angles, and the pair across π: its axis and half-gaps (rad)."""
+    return (0.0, 1.5, 2.9, np.pi - 0.02), np.array([0.48, -0.6, 0.64]), (0.02, 0.02)
+
+
+def _drawn_quaternion_angles(rng):
+    """The same family under a run seed: 0, two in the middle, one just short of π, and a pair
+    across π whose two sides lie 10⁻⁴ … 3·10⁻² rad from it."""
+    angles = (0.0, float(rng.uniform(0.5, 2.0)), float(rng.uniform(2.0, 3.0)),
+              float(np.pi - inputs.log_uniform(rng, 1e-3, 3e-2)))
+    u = rng.normal(size=3)
+    return angles, u / np.linalg.norm(u), tuple(inputs.log_uniform(rng, 1e-4, 3e-2, 2))
+
+
+@functools.lru_cache(maxsize=None)
+def _quaternion_pairs():
+    """(q_check, q_meas) pairs with q_measᵀ q_check ≥ 0 (before the check flips signs)."""
+    angles, u, (below, above) = inputs.fixed_or_drawn(_fixed_quaternion_angles(), _drawn_quaternion_angles,
+                                                      "eskf.quaternion.angles")
+    rng = inputs.rng("eskf.quaternion", 11)
+    pairs = []
+    for angle in angles:
+        axis = rng.normal(size=3)
+        q = so3.matrix_to_quat(so3.exp(axis / np.linalg.norm(axis) * angle))
+        pairs.append((q, so3.matrix_to_quat(so3.quat_to_matrix(q) @ so3.exp(rng.normal(size=3) * 0.05))))
+    # across π: scalar parts of opposite sign although q_m is close to q (0.04 rad when fixed)
+    pairs.append((np.r_[np.cos((np.pi - below) / 2), np.sin((np.pi - below) / 2) * u],
+                  np.r_[np.cos((np.pi + above) / 2), np.sin((np.pi + above) / 2) * u]))
+    out = []
+    for q, q_m in pairs:
+        out.append((q, -q_m if q_m @ q < 0.0 else q_m))
+    return tuple(out)
+
+
 @check
 def check_nominal_ekf_observation(align_quaternion):
     """``align_quaternion(q_check, q_meas)`` returns ±q_meas, whichever is closer to q_check.
@@ -869,19 +1064,7 @@ def check_nominal_ekf_observation(align_quaternion):
     q_check and of q_meas, so that a rule on one component (w ≥ 0) or on the vector part
     alone fails.
     """
-    rng = np.random.default_rng(11)
-    pairs = []
-    for angle in (0.0, 1.5, 2.9, np.pi - 0.02):
-        axis = rng.normal(size=3)
-        q = so3.matrix_to_quat(so3.exp(axis / np.linalg.norm(axis) * angle))
-        pairs.append((q, so3.matrix_to_quat(so3.quat_to_matrix(q) @ so3.exp(rng.normal(size=3) * 0.05))))
-    # across π: scalar parts of opposite sign (±0.01) although q_m is 0.04 rad from q
-    u = np.array([0.48, -0.6, 0.64])
-    pairs.append((np.r_[np.cos((np.pi - 0.02) / 2), np.sin((np.pi - 0.02) / 2) * u],
-                  np.r_[np.cos((np.pi + 0.02) / 2), np.sin((np.pi + 0.02) / 2) * u]))
-    for q, q_m in pairs:
-        if q_m @ q < 0.0:
-            q_m = -q_m
+    for q, q_m in _quaternion_pairs():
         for s_check in (1.0, -1.0):
             for s_meas in (1.0, -1.0):
                 got = call(align_quaternion, s_check * q, s_meas * q_m)
@@ -944,7 +1127,7 @@ def check_eskf_fd_transition(transition_by_finite_differences):
     tolerance), and, when wrong, with the known mistakes and with F = I + F_t T.
     """
     g = np.array([0.0, 0.0, -9.8092])
-    T = 0.01
+    T = _steps()[3]
     for x, f, w in _cases()[:2]:
         got = expect_shape(call(transition_by_finite_differences, x, f, w, T, g), (15, 15), "J")
         ref = _fd_transition(x, f, w, T, g)

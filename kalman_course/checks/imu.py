@@ -15,6 +15,19 @@ a reading longer than g and KITTI means.
 When a result is wrong, the check looks for the plausible mistake that reproduces the
 learner's value on *every* case (a wrong formula is consistent; a coincidence on one case is
 not) and names it; otherwise it reports the first case that differs, with the formula.
+
+Under a graded run's seed (:mod:`kalman_course.checks.cases`) every case is drawn anew from
+its family: other KITTI samples (real readings, true attitudes) with other made-up biases;
+the synthetic cases' attitudes, rates, readings, biases and time steps; the written-out
+cases' values (a constant rate and its step, the bias that cancels the rate, a zero rate at
+an attitude within 10⁻³ … 10⁻⁸ rad of a half turn, random directions of the tiny rates at
+about 1e-12, 1e-6 and 1e-3 rad/s, the resting IMU's velocity, heading and step, the constant
+acceleration); the whole run's simulated trajectory (another seed, 3–5 s, clean readings) and
+its KITTI slice (another start and 300–500 samples of the real ``turns`` readings, redrawn
+until every listed loop mistake changes the run and no two of them agree); and the
+levelling's tilts (10–30°, 55–85°, 0.5 … 10⁻³ rad short of upside down, 5e-7 … 1e-5 rad),
+headings, |f|/g (below and above 1, and a level reading) and the two KITTI windows it
+averages (real ``cruise`` readings).
 """
 
 from __future__ import annotations
@@ -25,6 +38,7 @@ import numpy as np
 
 from kalman_course.core import so3
 from kalman_course.core.angles import wrap_angle
+from kalman_course.checks import cases as inputs  # `cases` names the lists of cases below
 from kalman_course.checks.harness import CheckFailed, as_array, call, check, expect_shape
 from kalman_course.data import imu_trajectory, load_kitti
 from kalman_course.core.imu import NavState, dead_reckon
@@ -73,7 +87,7 @@ def reference_position_step(p, v0, v1, dt):
 def _kitti_cases(count: int = 6, seed: int = 0):
     """Consecutive KITTI IMU sample pairs with the true attitude there and made-up biases."""
     ex = load_kitti("turns")
-    rng = np.random.default_rng(seed)
+    rng = inputs.rng("imu.kitti", seed)  # under a run seed: other samples and other biases
     cases = []
     for k in rng.choice(np.arange(10, len(ex.imu) - 10), size=count, replace=False):
         nav = ex.truth.state_at(float(np.clip(ex.imu.t[k], ex.truth.t[0], ex.truth.t[-1])))
@@ -86,41 +100,87 @@ def _kitti_cases(count: int = 6, seed: int = 0):
 
 
 def _synthetic_case(name, seed, rate, spread, bias, dt):
-    """A case with a random attitude, two different rates and readings, and biases."""
-    rng = np.random.default_rng(seed)
+    """A case with a random attitude, two different rates and readings, and biases (drawn
+    anew under a run seed, the step too: within a factor 2 of ``dt``)."""
+    rng = inputs.rng("imu.synthetic", seed)
     w0 = rate * rng.normal(size=3)
-    return dict(name=name, R=so3.exp(rng.normal(size=3)), v=rng.normal(size=3) * 5.0,
+    case = dict(name=name, R=so3.exp(rng.normal(size=3)), v=rng.normal(size=3) * 5.0,
                 p=rng.normal(size=3) * 50.0, w0=w0, w1=w0 + spread * rng.normal(size=3),
                 b_w=bias * rng.normal(size=3), f0=rng.normal(size=3) * 3.0 - GRAVITY,
                 f1=rng.normal(size=3) * 3.0 - GRAVITY, b_a=rng.normal(size=3) * 0.3,
                 dt=dt, g=GRAVITY.copy())
+    if inputs.drawing():  # drawn after the rest, so that the fixed stream stays as it was
+        case["dt"] = float(inputs.log_uniform(rng, 0.5 * dt, 2.0 * dt))
+    return case
 
 
-@functools.lru_cache(maxsize=None)
-def _attitude_cases():
-    """(name, R, w0, w1, b_w, dt, R_next) for the attitude step."""
+def _random_axis(rng):
+    """A unit vector of uniformly drawn direction."""
+    u = rng.normal(size=3)
+    return u / np.linalg.norm(u)
+
+
+def _fixed_attitude_literals():
+    """The written-out attitude cases of the self-check: (name, R, w0, w1, b_w, dt)."""
     R0 = so3.exp(np.array([0.2, -0.4, 1.0]))
     w = np.array([0.3, -0.1, 0.7])
     still = np.array([0.01, -0.02, 0.005])
-    raw = [
-        # a constant rate ω about a fixed axis for T seconds is exactly Exp(ω T)
+    return [
         ("constant rate", R0, w, w, np.zeros(3), 0.5),
-        # every term differs: a start-point rate, a dropped bias or a wrong order all show
-        _pick(_synthetic_case("tumbling", 71, 0.8, 0.5, 0.1, 0.05), "R", "w0", "w1", "b_w", "dt"),
-        _pick(_synthetic_case("slow turn", 72, 0.2, 0.05, 0.02, 0.02), "R", "w0", "w1", "b_w", "dt"),
-        # the bias cancels the rate exactly: ω̄ = 0, where Rodrigues' formula divides 0 by 0
         ("bias-cancelled rate (ω̄ = 0)", R0, still, still, still, 0.01),
         ("zero rate", so3.exp(np.array([-1.0, 0.3, 2.5])), np.zeros(3), np.zeros(3), np.zeros(3), 0.01),
-        # tiny rates, where a series or a small-angle switch must still be exact
         ("rate 1e-12 rad/s", R0, 1e-12 * np.array([1.0, -2.0, 0.5]), 1e-12 * np.array([0.5, 1.0, -1.5]),
          np.zeros(3), 0.01),
         ("rate 1e-6 rad/s", R0, 1e-6 * np.array([-1.0, 2.0, 0.5]), 1e-6 * np.array([1.0, 1.0, 1.5]),
          1e-7 * np.array([1.0, 0.0, -1.0]), 0.01),
         ("rate 1e-3 rad/s", R0, 1e-3 * np.array([0.7, -0.2, 0.4]), 1e-3 * np.array([0.9, 0.2, -0.4]),
          1e-4 * np.array([1.0, 2.0, 3.0]), 0.1),
+    ]
+
+
+def _drawn_attitude_literals(rng):
+    """The same family under a run seed: a random attitude, random directions and sizes."""
+    R0 = so3.exp(rng.uniform(0.3, 3.0) * _random_axis(rng))
+    # an attitude just short of a half turn, where a hand-made Log/Exp pair is least exact
+    R_pi = so3.exp((np.pi - inputs.log_uniform(rng, 1e-8, 1e-3)) * _random_axis(rng))
+    w = rng.uniform(0.3, 1.2) * _random_axis(rng)
+    still = rng.uniform(0.005, 0.03) * _random_axis(rng)
+    raw = [("constant rate", R0, w, w, np.zeros(3), float(rng.uniform(0.2, 0.8))),
+           ("bias-cancelled rate (ω̄ = 0)", R0, still, still, still, float(inputs.log_uniform(rng, 0.005, 0.02))),
+           ("zero rate", R_pi, np.zeros(3), np.zeros(3), np.zeros(3), float(inputs.log_uniform(rng, 0.005, 0.02)))]
+    for size, bias in ((1e-12, 0.0), (1e-6, 1e-7), (1e-3, 1e-4)):
+        scale = inputs.log_uniform(rng, 0.5 * size, 2.0 * size)   # stays within a factor 2 of the label
+        raw.append((f"rate {size:.0e} rad/s".replace("e-0", "e-"), R0, scale * rng.normal(size=3),
+                    scale * rng.normal(size=3), bias * rng.normal(size=3),
+                    float(inputs.log_uniform(rng, 0.005, 0.1))))
+    return raw
+
+
+@functools.lru_cache(maxsize=None)
+def _attitude_cases():
+    """(name, R, w0, w1, b_w, dt, R_next) for the attitude step."""
+    # a constant rate ω about a fixed axis for T seconds is exactly Exp(ω T); the bias that
+    # cancels the rate exactly gives ω̄ = 0, where Rodrigues' formula divides 0 by 0; tiny
+    # rates, where a series or a small-angle switch must still be exact
+    constant, cancelled, zero, *tiny = inputs.fixed_or_drawn(_fixed_attitude_literals(),
+                                                             _drawn_attitude_literals, "imu.attitude")
+    raw = [
+        constant,
+        # every term differs: a start-point rate, a dropped bias or a wrong order all show
+        _pick(_synthetic_case("tumbling", 71, 0.8, 0.5, 0.1, 0.05), "R", "w0", "w1", "b_w", "dt"),
+        _pick(_synthetic_case("slow turn", 72, 0.2, 0.05, 0.02, 0.02), "R", "w0", "w1", "b_w", "dt"),
+        cancelled, zero, *tiny,
     ] + [_pick(c, "R", "w0", "w1", "b_w", "dt") for c in _kitti_cases()]
     return tuple(dict(name=n, R=R, w0=w0, w1=w1, b_w=b, dt=dt, ref=reference_attitude_step(R, w0, w1, b, dt))
                  for n, R, w0, w1, b, dt in raw)
+
+
+def _drawn_rest(rest, rng):
+    """A level IMU at rest under a run seed: another horizontal velocity, heading and step
+    (a heading turns about up, so the resting reading −g stays that of a level IMU)."""
+    v = np.r_[rng.normal(size=2) * 3.0, 0.0]
+    return dict(rest, v=v, R=so3.exp(rng.uniform(-np.pi, np.pi) * np.array([0.0, 0.0, 1.0])),
+                dt=float(inputs.log_uniform(rng, 0.02, 0.3)))
 
 
 @functools.lru_cache(maxsize=None)
@@ -129,6 +189,7 @@ def _velocity_cases():
     rest = dict(name="level IMU at rest", v=np.array([1.0, 2.0, 0.0]), R=np.eye(3), w0=np.zeros(3),
                 w1=np.zeros(3), b_w=np.zeros(3), f0=-GRAVITY, f1=-GRAVITY, b_a=np.zeros(3), dt=0.1,
                 g=GRAVITY.copy())
+    rest = inputs.fixed_or_drawn(rest, lambda rng: _drawn_rest(rest, rng), "imu.velocity.rest")
     raw = [rest, _synthetic_case("tumbling", 81, 0.8, 0.5, 0.1, 0.05),
            _synthetic_case("braking on a slope", 82, 0.3, 0.2, 0.05, 0.02)] + list(_kitti_cases())
     # standard gravity in one case, so that a hard-coded g differs from the one handed in
@@ -144,16 +205,25 @@ def _velocity_cases():
 @functools.lru_cache(maxsize=None)
 def _position_cases():
     """Cases for the position step: constant acceleration, random velocities, KITTI."""
-    p, v0, a, T = np.array([1.0, -2.0, 0.5]), np.array([3.0, 1.0, 0.0]), np.array([0.5, -1.0, 0.2]), 0.2
+    p, v0, a, T, steps, dv = inputs.fixed_or_drawn(
+        (np.array([1.0, -2.0, 0.5]), np.array([3.0, 1.0, 0.0]), np.array([0.5, -1.0, 0.2]), 0.2,
+         (0.05, 0.013), np.array([0.01, -0.02, 0.003])), _drawn_position_literals, "imu.position.literals")
     raw = [("constant acceleration", p, v0, v0 + a * T, T)]
-    rng = np.random.default_rng(90)
-    for k, T in enumerate((0.05, 0.013)):
+    rng = inputs.rng("imu.position", 90)
+    for k, T in enumerate(steps):
         raw.append((f"random velocities {k}", rng.normal(size=3) * 30.0, rng.normal(size=3) * 8.0,
                     rng.normal(size=3) * 8.0, T))
     for c in _kitti_cases():
-        raw.append((c["name"], c["p"], c["v"], c["v"] + np.array([0.01, -0.02, 0.003]), c["dt"]))
+        raw.append((c["name"], c["p"], c["v"], c["v"] + dv, c["dt"]))
     return tuple(dict(name=n, args=(p, v0, v1, T), ref=reference_position_step(p, v0, v1, T))
                  for n, p, v0, v1, T in raw)
+
+
+def _drawn_position_literals(rng):
+    """(p, v0, a, T, the random cases' steps, the KITTI cases' velocity change) under a run seed."""
+    return (rng.normal(size=3) * 5.0, rng.normal(size=3) * 5.0, rng.normal(size=3),
+            float(inputs.log_uniform(rng, 0.05, 0.5)), tuple(inputs.log_uniform(rng, 0.005, 0.1, 2)),
+            rng.normal(size=3) * 0.02)
 
 
 def _pick(case, *keys):
@@ -553,9 +623,9 @@ def _variant_run(imu, state, g, start, stop, *, dt="own", w_at=(-1, 0), f_at=(-1
 _OFF_BY_ONE = ("off by one: the step from sample k−1 to sample k uses the readings at k−1 and k and "
                "dt = imu.t[k] − imu.t[k−1]")
 _RUN_MISTAKES = [
-    (dict(dt="first"), "KITTI's IMU timestamps are irregular (dt from 7.6 to 12 ms here): give every step its "
+    (dict(dt="first"), "KITTI's IMU timestamps are irregular (dt from {dt_range} here): give every step its "
                        "own dt = imu.t[k] − imu.t[k−1], not the first interval"),
-    (dict(dt="slice"), "KITTI's IMU timestamps are irregular (dt from 7.6 to 12 ms here): give every step its "
+    (dict(dt="slice"), "KITTI's IMU timestamps are irregular (dt from {dt_range} here): give every step its "
                        "own dt = imu.t[k] − imu.t[k−1], not one interval for all"),
     (dict(dt="next"), _OFF_BY_ONE + " (your dt is the next interval, imu.t[k+1] − imu.t[k])"),
 ] + [
@@ -594,23 +664,78 @@ _RUN_MISTAKES = [
 ]
 
 
-@functools.lru_cache(maxsize=None)
-def _run_scenarios():
-    """(name, imu, initial state, g, start, stop, reference (p, v, R)) of the two runs."""
-    # synthetic motion whose truth the midpoint rule reproduces exactly, with a constant dt;
-    # run to the last sample, so an index one past the end raises
-    sc = imu_trajectory(3, duration=5.0)
+def _synthetic_scenario(seed, duration):
+    """Synthetic motion whose truth the midpoint rule reproduces exactly, with a constant dt;
+    run to the last sample, so that an index one past the end raises."""
+    sc = imu_trajectory(seed, duration=duration)
     state = NavState(sc.position[0], sc.velocity[0], sc.rotation[0])
-    synthetic = ("synthetic motion with clean readings", sc.imu_clean, state, GRAVITY.copy(), 0,
-                 len(sc.t), (sc.position, sc.velocity, sc.rotation))
-    # KITTI: irregular dt, a slice that starts at sample k0 and ends before the data's end
-    name, k0, n = RUN_SLICE
+    return ("synthetic motion with clean readings", sc.imu_clean, state, GRAVITY.copy(), 0,
+            len(sc.t), (sc.position, sc.velocity, sc.rotation))
+
+
+def _kitti_scenario(name, k0, n):
+    """KITTI: irregular dt, a slice that starts at sample k0 and ends before the data's end."""
     ex = load_kitti(name)
     nav = ex.truth.state_at(ex.imu.t[k0])
     ref = dead_reckon(ex.imu, nav, ex.gravity, start=k0, stop=k0 + n)
-    kitti = (f"KITTI '{name}' samples {k0}..{k0 + n - 1}", ex.imu, nav, ex.gravity.copy(), k0, k0 + n,
-             (ref.position, ref.velocity, ref.rotation))
+    return (f"KITTI '{name}' samples {k0}..{k0 + n - 1}", ex.imu, nav, ex.gravity.copy(), k0, k0 + n,
+            (ref.position, ref.velocity, ref.rotation))
+
+
+def _same_runs(a, b) -> bool:
+    return all(np.allclose(x, y, rtol=0.0, atol=tol) for x, y, tol in zip(a, b, RUN_ATOL))
+
+
+def _mistakes_stay_apart(scenario) -> bool:
+    """Whether, on ``scenario``, no two listed loop mistakes give the same run and (on KITTI,
+    where every one of them must show) none gives the reference's: otherwise a drawn slice
+    could pass a mistake or name the wrong one."""
+    name, imu, state, g, start, stop, ref = scenario
+    runs = []
+    for flags, _ in _RUN_MISTAKES:
+        flags = dict(flags, bias=g) if flags.get("bias") == "g" else flags
+        try:
+            runs.append(_variant_run(imu, state, g, start, stop, **flags))
+        except IndexError:          # (the synthetic run reaches the data's end: skipped there too)
+            continue
+    kitti = start > 0
+    if kitti and any(_same_runs(run, ref) for run in runs):
+        return False
+    moved = [run for run in runs if not _same_runs(run, ref)]
+    return not any(_same_runs(a, b) for i, a in enumerate(moved) for b in moved[i + 1:])
+
+
+def _drawn_scenarios():
+    """The two runs under a run seed: another simulated trajectory (3–5 s, no longer than the
+    fixed one) and another slice of the real KITTI readings, each redrawn until the listed
+    loop mistakes stay apart on it."""
+    rng = inputs.rng("imu.run")
+    name, _, n_fixed = RUN_SLICE
+    size = len(load_kitti(name).imu)
+    while True:
+        synthetic = _synthetic_scenario(int(rng.integers(10, 2**31)), float(rng.uniform(3.0, 5.0)))
+        if _mistakes_stay_apart(synthetic):
+            break
+    while True:
+        n = int(rng.integers(300, n_fixed + 1))
+        kitti = _kitti_scenario(name, int(rng.integers(10, size - n - 10)), n)
+        if _mistakes_stay_apart(kitti):
+            break
     return synthetic, kitti
+
+
+@functools.lru_cache(maxsize=None)
+def _run_scenarios():
+    """(name, imu, initial state, g, start, stop, reference (p, v, R)) of the two runs."""
+    if inputs.drawing():
+        return _drawn_scenarios()
+    return _synthetic_scenario(3, 5.0), _kitti_scenario(*RUN_SLICE)
+
+
+def _dt_range(imu, start, stop) -> str:
+    """The spread of the slice's sample intervals, in words for a hint (ms)."""
+    dt = 1e3 * np.diff(imu.t[start:stop])
+    return f"{dt.min():.2g} to {dt.max():.2g} ms"
 
 
 #: Tolerances of the run, m, m/s and on rotation entries: the learner's loop of steps and
@@ -640,6 +765,7 @@ def _diagnose_run(result, scenario):
         except IndexError:
             continue
         if all(np.allclose(x, y, rtol=0.0, atol=tol) for x, y, tol in zip(result, wrong, RUN_ATOL)):
+            why = why.format(dt_range=_dt_range(imu, start, stop)) if "{dt_range}" in why else why
             raise CheckFailed(f"the run on {name} is wrong. Hint: {why}")
     if np.allclose(R, np.swapaxes(ref[2], 1, 2), rtol=0.0, atol=RUN_ATOL[2]):
         raise CheckFailed(f"rotations on {name} are transposed. Hint: return R_nb (body → navigation), "
@@ -730,23 +856,53 @@ def _fold(angle):
     return float(abs(wrap_angle(angle)))
 
 
+#: The self-check's levelling cases: ((name, tilt, heading, |f|/g), ...), the level reading's
+#: |f|/g, and the first samples of the two KITTI windows averaged.
+_FIXED_LEVEL = ((("tilted 17°, heading 40°", np.radians(17.0), np.radians(40.0), 1.0),
+                 ("tilted 70°, heading −120°", np.radians(70.0), np.radians(-120.0), 1.0),
+                 ("mounted upside down, tilted 150°", np.radians(150.0), 0.5, 1.0),
+                 ("nearly level (tilt 1e-6 rad)", 1e-6, 2.0, 1.0),
+                 ("accelerating: |f| = 1.08 g, tilted 8°", np.radians(8.0), -0.7, 1.08)),
+                1.0, (200, 2500))
+
+
+def _drawn_level(rng):
+    """The levelling family under a run seed: tilts in the same bands (upside down up to 1e-3 rad
+    short of a half turn), any heading, |f| below or above g, other windows of ``cruise``."""
+    def heading():
+        return float(rng.uniform(-np.pi, np.pi))
+
+    tilts = []
+    for low, high in ((10.0, 30.0), (55.0, 85.0)):
+        tilt, psi = np.radians(rng.uniform(low, high)), heading()
+        heading_text = f"{np.degrees(psi):.0f}".replace("-", "−")    # the minus sign of the fixed names
+        tilts.append((f"tilted {np.degrees(tilt):.1f}°, heading {heading_text}°", tilt, psi, 1.0))
+    short = float(inputs.log_uniform(rng, 1e-3, 0.5))      # how far from upside down (rad)
+    tilts.append((f"mounted upside down, tilted π − {short:.2g} rad", np.pi - short, heading(), 1.0))
+    tiny = float(inputs.log_uniform(rng, 5e-7, 1e-5))
+    tilts.append((f"nearly level (tilt {tiny:.2g} rad)", tiny, heading(), 1.0))
+    scale = float(rng.choice([-1.0, 1.0]) * rng.uniform(0.04, 0.15) + 1.0)
+    tilt = np.radians(rng.uniform(3.0, 15.0))
+    tilts.append((f"accelerating: |f| = {scale:.3g} g, tilted {np.degrees(tilt):.1f}°", tilt, heading(), scale))
+    size = len(load_kitti("cruise").imu)
+    windows = tuple(int(k) for k in rng.choice(np.arange(0, size - 100), size=2, replace=False))
+    return tuple(tilts), float(rng.uniform(0.9, 1.1)), windows
+
+
 @functools.lru_cache(maxsize=None)
 def _level_cases():
     """(name, f, unit f, tilt) of the levelling check: tilts from 0 to 150°, |f| ≠ g, KITTI means."""
     g = 9.8092
+    tilts, level, windows = inputs.fixed_or_drawn(_FIXED_LEVEL, _drawn_level, "imu.level")
     raw = []
-    for name, tilt, heading, scale in (("tilted 17°, heading 40°", np.radians(17.0), np.radians(40.0), 1.0),
-                                       ("tilted 70°, heading −120°", np.radians(70.0), np.radians(-120.0), 1.0),
-                                       ("mounted upside down, tilted 150°", np.radians(150.0), 0.5, 1.0),
-                                       ("nearly level (tilt 1e-6 rad)", 1e-6, 2.0, 1.0),
-                                       ("accelerating: |f| = 1.08 g, tilted 8°", np.radians(8.0), -0.7, 1.08)):
+    for name, tilt, heading, scale in tilts:
         # a true attitude: heading about up, then a tilt about a horizontal axis
         axis = np.array([np.cos(heading + 1.0), np.sin(heading + 1.0), 0.0])
         R_true = so3.exp(tilt * axis) @ so3.exp(heading * UP)
         raw.append((name, scale * R_true.T @ (g * UP)))         # a resting IMU reads R_trueᵀ (−g)
-    raw.append(("level (f straight up)", np.array([0.0, 0.0, g])))
+    raw.append(("level (f straight up)", np.array([0.0, 0.0, level * g])))
     ex = load_kitti("cruise")
-    for k in (200, 2500):  # KITTI's readings averaged over 1 s: real tilt, noise and motion
+    for k in windows:  # KITTI's readings averaged over 1 s: real tilt, noise and motion
         raw.append((f"KITTI, mean of samples {k}..{k + 99}", ex.imu.specific_force[k:k + 100].mean(axis=0)))
     cases = []
     for name, f in raw:
