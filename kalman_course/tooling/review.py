@@ -7,9 +7,12 @@ earlier cell, or reaching into the code that calls the learner's function. None 
 can be prevented inside the kernel, but all of it is visible in the source.
 :func:`review_flags` reads the syntax tree of every code cell but the one taken as each
 grader (:mod:`kalman_course.tooling.identify`; a cell that only carries a grader's id is
-read) that differs from the released cell it was written into (IPython magics translated,
-and the Python that ``%time``, ``%timeit``, ``%%capture``, ``%%writefile`` and the like
-run read as well) and reports
+read) that differs from the released cell it was written into, as IPython runs it: after
+IPython's own input transformations (magics, shell escapes, and for a one-line cell the
+automagic and autocall that IPython's prefilter applies), with the Python that magics run
+(``%time``, ``%timeit``, ``%%capture``, ``%%writefile``, the aliases ``%alias_magic`` makes),
+what ``{...}`` in a magic's line or a shell command evaluates, here-documents, and the files
+the notebook writes that ``%run``, ``%load_ext`` or an import run, read as well; and reports
 
 - an import of a function the learner must write (one defined in a released cell with a
   ``# fix this`` line), or a binding or call of such a function through a module
@@ -43,7 +46,19 @@ run read as well) and reports
   (``np.allclose = ...``, ``np.ndarray.__eq__ = ...``), builtins, a class of an imported
   module;
 - a star-import the release does not make, and ``getattr``, ``vars`` or dunder access on a
-  ``kalman_course`` module or on a module imported at run time.
+  ``kalman_course`` module or on a module imported at run time;
+- what changes how IPython reads later cells (``%autocall``, ``%automagic``, ``%alias_magic``,
+  ``%alias``, ``%rehashx``, ``%macro``, ``%config`` of the shell's reading), and what IPython
+  runs that the review cannot read: ``%run``, ``%load`` or ``%load_ext`` of a file or module
+  whose code is not in the notebook (an extension written in it too: it is handed the shell),
+  ``%store -r``, a cell magic it does not know, a shell (``!``, ``%%bash``, ``%sx``,
+  ``subprocess``, ...) that runs Python, writes a Python file or installs from a path or URL,
+  Python that writes a Python file with text it cannot read (or any file under a computed
+  name), an import of a module that is neither installed nor written in the notebook, a magic
+  call with computed arguments, the shell's runners (``run_cell``, ``ex``, ...) reached under any
+  name (``globals()["get_ipython"]``, ``builtins.get_ipython``, ``getattr``, ``methodcaller``,
+  a namespace's values), and a source encoding declaration other than UTF-8 or ASCII (the
+  decoded text is read too).
 
 Names are resolved through the notebook's imports and simple aliases (``import numpy as n``,
 ``s = sys``, ``from sys import _getframe as g``), scope by scope, so a function's own local
@@ -57,7 +72,16 @@ from __future__ import annotations
 
 import ast
 import builtins
+import codecs
+import functools
+import importlib.util
+import io
+import keyword
+import os
 import re
+import shlex
+import sys
+import tokenize
 from dataclasses import dataclass, field
 
 from kalman_course.tooling.cells import FIX_THIS, grader_info
@@ -74,7 +98,7 @@ _MAGIC_METHODS = frozenset({"run_line_magic", "run_cell_magic", "system", "getou
 #: Magics whose argument (line) or body (cell) IPython runs or writes as Python.
 _PYTHON_LINE_MAGICS = frozenset({"time", "timeit", "prun", "debug"})
 _PYTHON_CELL_MAGICS = frozenset({"time", "timeit", "prun", "debug", "capture", "writefile", "file",
-                                 "python", "python3", "pypy"})
+                                 "python", "python2", "python3", "pypy"})
 
 _TOO_DEEP = "nests code too deeply for the review to read it"
 _RUNS = "which runs code the review cannot read"
@@ -91,7 +115,8 @@ _BY_NAME = "which gets a module's contents by name"
 _RISKY = {
     "builtins.exec": _RUNS, "builtins.eval": _RUNS, "builtins.compile": _RUNS,
     "builtins.__import__": "which imports a module named at run time",
-    "runpy": _RUNS, "code.InteractiveInterpreter": _RUNS, "code.InteractiveConsole": _RUNS,
+    "runpy": _RUNS, "site.addsitedir": _RUNS, "site.addpackage": _RUNS, "site.main": _RUNS,  # run .pth lines
+    "code.InteractiveInterpreter": _RUNS, "code.InteractiveConsole": _RUNS,
     "types.FunctionType": _BUILDS, "types.LambdaType": _BUILDS, "types.CodeType": _BUILDS,
     "marshal.load": _LOADS, "marshal.loads": _LOADS, "pickle.load": _LOADS, "pickle.loads": _LOADS,
     "pickle.Unpickler": _LOADS, "_pickle": _LOADS, "dill.load": _LOADS, "dill.loads": _LOADS,
@@ -113,7 +138,18 @@ _RISKY = {
 }
 #: The parts of IPython that only display things; the rest of ``IPython.*`` reaches the shell.
 _IPYTHON_DISPLAY = ("IPython.display", "IPython.core.display", "IPython.core.display_functions", "IPython.lib.display")
-_GET_IPYTHON = frozenset({"IPython.get_ipython", "IPython.core.getipython.get_ipython"})
+#: While a cell runs, IPython puts ``get_ipython`` in the builtins and the user namespace (``__main__``) too.
+_GET_IPYTHON = frozenset({"IPython.get_ipython", "IPython.core.getipython.get_ipython", "builtins.get_ipython",
+                          "__main__.get_ipython"})
+#: What the shell object runs code with: reached on any object (the shell under another name), by
+#: ``getattr`` or ``operator.methodcaller``, they are the shell's own way to run unread code.
+_SHELL_METHODS = frozenset({"run_cell", "run_cell_async", "run_line_magic", "run_cell_magic", "safe_execfile",
+                            "safe_execfile_ipy", "safe_run_module", "runcode", "run_code", "run_ast_nodes",
+                            "transform_cell", "transform_ast", "define_macro", "find_magic", "find_line_magic",
+                            "find_cell_magic", "register_magics", "magics_manager", "prefilter_manager",
+                            "alias_manager", "extension_manager", "system_piped", "system_raw", "_ip"})
+#: Shell methods whose names are too common to flag on any object; on the shell they are flagged anyway.
+_SHELL_METHODS_BY_NAME = _SHELL_METHODS | {"ex", "ev", "system", "getoutput", "push", "magic", "kernel"}
 
 #: Attribute names that honest course code never touches, on whatever object.
 _RISKY_ATTRIBUTES = {
@@ -124,6 +160,7 @@ _RISKY_ATTRIBUTES = {
     **dict.fromkeys(("set_custom_exc", "input_transformers_cleanup", "input_transformers_post",
                      "input_transformer_manager", "ast_transformers", "register_magic_function",
                      "user_ns", "user_global_ns"), _SHELL),
+    **dict.fromkeys(_SHELL_METHODS, _SHELL),
     **dict.fromkeys(("__globals__", "__code__", "__closure__", "__subclasses__"),
                     "which reaches into the internals of functions and classes"),
 }
@@ -149,33 +186,492 @@ _PACKAGE_PATH = re.compile(r"(?:^|[/\\])kalman_course(?:[/\\]|$)")
 _RUNTIME_MODULE = "?"
 
 
-def _parser():
-    """A function source -> AST (IPython magics and shell escapes translated, the Python that
-    magics run appended at module level; None if the cell is not valid Python), parsing each
-    distinct source once."""
+# --- what IPython runs ------------------------------------------------------------------------
+#
+# The kernel does not run a cell's text but what IPython makes of it: its static transforms
+# (``%``, ``!``, ``?``, ``%%``) apply to every cell, and a cell that is one line after them is
+# "prefiltered", where automagic (on by default) runs ``time x`` as ``%time x`` and autocall
+# (off unless the notebook turns it on) runs ``f x`` as ``f(x)``. Magics then run more Python
+# (``%time``, ``%%capture``), files (``%run``, ``%load_ext``) and shells (``!``, ``%%bash``), and
+# aliases (``%alias_magic``, ``%alias``) rename all of that. The review reads each of these as
+# the kernel would, and flags what it cannot read.
+
+#: Line magics of IPython and ipykernel, the default system aliases and the magics of the
+#: extensions a kernel loads (``storemagic``) or that learners load (``autoreload``): a one-line
+#: cell whose first word is one of them runs as that magic (automagic).
+_LINE_MAGICS = frozenset("""
+    aimport alias alias_magic autoawait autocall automagic autoreload autosave bookmark cat cd clear colors conda
+    config connect_info cp debug dhist dirs doctest_mode ed edit env gui hist history killbgscripts ldir less lf lk
+    ll load load_ext loadpy logoff logon logstart logstate logstop ls lsmagic lx macro magic man matplotlib mkdir
+    more mv notebook page pastebin pdb pdef pdoc pfile pinfo pinfo2 pip popd pprint precision prun psearch psource
+    pushd pwd pycat pylab qtconsole quickref recall rehashx reload_ext rep rerun reset reset_selective rm rmdir run
+    save sc set_env store subshell sx system tb time timeit unalias unload_ext who who_ls whos xdel xmode
+    """.split())
+_CELL_MAGICS = frozenset("""
+    ! HTML SVG bash capture debug file html javascript js latex markdown perl prun pypy python python2 python3
+    ruby script sh svg sx system time timeit writefile
+    """.split())
+#: Magics that IPython hands their line as written (``@no_var_expand``); the others see
+#: ``{expression}`` and ``$name`` evaluated first, which runs that Python.
+_NO_VAR_EXPAND = frozenset({"time", "timeit", "prun", "debug"})
+#: The system aliases every IPython defines (``%cp a b`` runs ``cp a b``).
+_DEFAULT_ALIASES = frozenset({"cat", "cp", "ldir", "lf", "lk", "ll", "ls", "lx", "mkdir", "mv", "rm", "rmdir"})
+#: Cell magics whose body is a shell (or another interpreter's) script.
+_SHELL_CELL_MAGICS = frozenset({"bash", "sh", "sx", "system", "!", "perl", "ruby"})
+#: Magics after which IPython reads (or may read) later cells differently.
+_READING_MAGICS = frozenset({"autocall", "automagic", "alias_magic", "alias", "rehashx", "config", "macro",
+                             "autoawait"})
+#: ``%config`` settings that change how output looks, not how input is read.
+_HONEST_CONFIG_CLASSES = frozenset({"InlineBackend", "IPCompleter", "Completer", "PlainTextFormatter",
+                                    "HistoryManager"})
+_HONEST_SHELL_TRAITS = frozenset({"ast_node_interactivity", "colors", "xmode", "pdb", "separate_in", "separate_out",
+                                  "separate_out2", "show_rewritten_input", "autoindent", "cache_size",
+                                  "sphinxify_docstring", "enable_html_pager"})
+_SHELL_CLASSES = frozenset({"InteractiveShell", "ZMQInteractiveShell", "TerminalInteractiveShell"})
+_HONEST_AWAIT = frozenset({"", "on", "off", "true", "false", "1", "0", "asyncio", "curio", "trio"})
+#: IPython extensions that only add timing, profiling and reloading magics.
+_HONEST_EXTENSIONS = frozenset({"autoreload", "storemagic", "line_profiler", "memory_profiler", "snakeviz",
+                                "watermark"})
+#: Names in every IPython user namespace: like the notebook's own names, they shadow a magic
+#: of the same name for automagic.
+_USER_NS = frozenset({"In", "Out", "get_ipython", "exit", "quit", "_ih", "_oh", "_dh", "_", "__", "___", "_i",
+                      "_ii", "_iii"})
+#: What IPython's prefilter asks of a line before autocall rewrites it (``re_fun_name``,
+#: ``re_exclude_auto`` and the operators of ``PythonOpsChecker``).
+_AUTOCALL_NAME = re.compile(r"[^\W\d]([\w.]*) *$")
+_NO_AUTOCALL = re.compile(r"^[,&^|*/+-]|^is |^not |^in |^and |^or |^[!=()<>,+*/%^&|]")
+_PYTHON_FILE = re.compile(r"\.(?:py|pyw|pyc|pyo|pth|ipy|so|pyd)$")
+#: Compiled Python (``__pycache__/m.cpython-311.pyc`` runs instead of ``m.py``): never readable.
+_COMPILED_FILE = re.compile(r"\.(?:pyc|pyo|so|pyd)$")
+#: A matplotlib backend named as a module (``%matplotlib module://m``, ``matplotlib.use(...)``): imported.
+_BACKEND_MODULE = re.compile(r"^module://([A-Za-z_][\w.]*)$")
+_PYTHON_EXE = r"(?<![\w.-])(?:[\w.~/-]*/)?(?:i?python[\d.]*|pypy[\d.]*|jupyter(?:-[\w-]+)?|papermill)(?![\w.-])"
+_RUNS_PYTHON = re.compile(_PYTHON_EXE)
+#: ``python -m pip ...`` is pip, judged by what it installs.
+_PYTHON_PIP = re.compile(_PYTHON_EXE + r"\s+-m\s+pip\b")
+#: A pip argument that installs code from somewhere other than the package index.
+_LOCAL_PACKAGE = re.compile(r"^(?:\.|/|~|file:|git\+|hg\+|svn\+|https?:|-e$|--editable|-r$|--requirement|-i$|"
+                            r"--index-url|--extra-index-url|-f$|--find-links)|\.(?:whl|zip|tar\.gz|tgz)$")
+#: Shell commands that read files but write none (a redirect writes, and is read on its own).
+_READ_ONLY_COMMANDS = frozenset({"ls", "ll", "cat", "head", "tail", "wc", "grep", "egrep", "fgrep", "rg", "less",
+                                 "more", "file", "stat", "du", "df", "diff", "cmp", "md5sum", "sha1sum", "sha256sum",
+                                 "echo", "printf", "find", "which", "type", "pwd", "nl", "od", "xxd", "hexdump",
+                                 "realpath", "readlink", "basename", "dirname", "test", "[", "rm", "rmdir", "tree",
+                                 "pygmentize", "pip", "pip3", "conda"})
+_COMMAND_PREFIXES = frozenset({"sudo", "env", "command", "exec", "nohup", "time", "nice", "builtin"})
+_REDIRECT = re.compile(r"(?:\d?>>?|&>>?|>\|)\s*(['\"]?)([^\s'\";&|<>()]+)\1")
+_TEE = re.compile(r"\btee\b(?:\s+-\S+)*\s+(['\"]?)([^\s'\";&|<>()]+)\1")
+_HEREDOC = re.compile(r"(?<!<)<<(?!<)(-?)[ \t]*(['\"]?)([^\s'\"<>;&|()]+)\2")
+#: Python that starts another process, and the argument that names the command.
+_PROCESSES = frozenset({"os.system", "os.popen", "subprocess.run", "subprocess.call", "subprocess.check_call",
+                        "subprocess.check_output", "subprocess.Popen", "subprocess.getoutput",
+                        "subprocess.getstatusoutput", "os.execv", "os.execve", "os.execl", "os.execle", "os.execvp",
+                        "os.execvpe", "os.execlp", "os.execlpe", "os.spawnv", "os.spawnve", "os.spawnl",
+                        "os.spawnle", "os.spawnvp", "os.spawnlp", "os.posix_spawn", "os.posix_spawnp", "pty.spawn",
+                        "asyncio.create_subprocess_exec", "asyncio.create_subprocess_shell"})
+_OPENERS = frozenset({"builtins.open", "io.open", "codecs.open", "os.open", "io.FileIO", "_io.open"})
+_PATHS = frozenset({"pathlib.Path", "pathlib.PosixPath", "pathlib.PurePath", "pathlib.PurePosixPath",
+                    "pathlib.WindowsPath"})
+_COPIES = frozenset({"shutil.copy", "shutil.copy2", "shutil.copyfile", "shutil.copytree", "shutil.move", "os.rename",
+                     "os.replace", "os.link", "os.symlink"})
+
+_READS_LATER = "which changes how IPython reads later cells"
+_UNREADABLE = "code the review cannot read"
+
+
+def _python(text: str) -> ast.Module | None:
+    """``text`` parsed as Python, or None (RecursionError is left to the caller)."""
+    try:
+        return ast.parse(text)
+    except (SyntaxError, ValueError):
+        return None
+
+
+@dataclass
+class _Shell:
+    """IPython's state as the notebook sets it, as far as reading cells goes. The review does
+    not run the cells, so what any cell sets counts for every cell."""
+
+    #: ``%alias_magic`` name -> (the magic it runs, the parameters it adds), for line and cell magics
+    line_aliases: dict[str, tuple[str, str]] = field(default_factory=dict)
+    cell_aliases: dict[str, tuple[str, str]] = field(default_factory=dict)
+    #: ``%alias`` name -> the shell command it runs
+    system_aliases: dict[str, str] = field(default_factory=dict)
+    autocall: bool = False
+    #: ``%rehashx`` makes every program on the PATH a magic
+    rehashx: bool = False
+    #: module-level names the notebook binds (they shadow a magic of the same name)
+    bound: frozenset[str] = frozenset()
+    #: path (normalised) -> every text the notebook writes there, in cell order (a later write
+    #: does not hide an earlier one: the review does not know which one a run reads)
+    files: dict[str, list[str]] = field(default_factory=dict)
+
+    def is_line_magic(self, name: str) -> bool:
+        return (name in _LINE_MAGICS or name in self.line_aliases or name in self.system_aliases
+                or (self.rehashx and re.fullmatch(r"[\w+-][\w.+-]*", name) is not None))
+
+    def file(self, path: str) -> list[str]:
+        """The texts the notebook writes at ``path`` (or ``path.py``, as ``%run`` tries)."""
+        return [text for candidate in (path, path + ".py") for text in self.files.get(_normalised(candidate), [])]
+
+    def module(self, name: str) -> list[str]:
+        """The texts of module ``name`` that the notebook writes (``m.py``, ``pkg/__init__.py``)."""
+        return [text for path, texts in self.files.items() if name in _module_names(path) for text in texts]
+
+
+def _normalised(path: str) -> str:
+    return os.path.normpath(path.strip().strip("'\"")) if path.strip() else ""
+
+
+def _module_names(path: str) -> set[str]:
+    """The names ``import`` finds the Python file at ``path`` under (the notebook's folder and
+    the file's own folder on ``sys.path``)."""
+    stem, suffix = os.path.splitext(path)
+    if suffix not in (".py", ".pyc", ".so", ".pyd"):
+        return set()
+    parts = [p for p in stem.replace("\\", "/").split("/") if p not in ("", ".")]
+    if parts and parts[-1] == "__init__":
+        parts = parts[:-1]
+    names = {parts[-1]} if parts else set()
+    if parts and not os.path.isabs(path) and ".." not in parts:
+        names.add(".".join(parts))
+    return names
+
+
+@dataclass(frozen=True)
+class _Invocation:
+    """One magic or shell escape a cell runs, as IPython runs it (aliases followed)."""
+
+    kind: str  # "line", "cell" or "shell"
+    name: str  # the magic that runs ('' for a shell escape)
+    written: str  # the name the cell calls it by
+    line: str  # the magic's line (for a shell: its command)
+    body: str = ""  # a cell magic's body
+
+    def shown(self) -> str:
+        written = {"line": f"%{self.written} {self.line}", "cell": f"%%{self.written} {self.line}"}.get(
+            self.kind, f"{self.written}{self.line}" if self.written == "!" else f"%{self.written} {self.line}")
+        return _shortened(written.strip())
+
+
+def _shortened(text: str, width: int = 60) -> str:
+    text = " ".join(text.split())
+    return text if len(text) <= width else text[:width - 3] + "..."
+
+
+def _walk(tree: ast.Module) -> list[ast.AST]:
+    """The nodes of ``tree``; once it is read to the end (``complete``) the list is kept, as
+    every check walks it."""
+    if not getattr(tree, "complete", False):
+        return list(ast.walk(tree))
+    if not hasattr(tree, "walked"):
+        tree.walked = list(ast.walk(tree))
+    return tree.walked
+
+
+def _constant_args(node: ast.Call) -> list[str] | None:
+    """The arguments of a magic call if they are what IPython writes (positional string
+    constants), else None."""
+    args = [_str(a) for a in node.args]
+    return None if node.keywords or None in args else args
+
+
+def _invocations(tree: ast.Module, shell: _Shell):
+    """The magics and shell escapes in ``tree`` (those written as IPython writes them)."""
+    if not getattr(tree, "has_magics", True):  # most cells have none: no need to walk them
+        return
+    for node in _walk(tree):
+        if not _is_magic_call(node) or (args := _constant_args(node)) is None:
+            continue
+        method = node.func.attr
+        if method in ("system", "getoutput") and args:
+            yield _Invocation("shell", "", "!", args[0])
+        elif method == "run_line_magic" and len(args) >= 2:
+            yield _line_invocation(args[0], args[1], shell)
+        elif method == "run_cell_magic" and len(args) >= 3:
+            name, line = _follow_aliases(args[0], args[1], shell.cell_aliases)
+            yield _Invocation("cell", name, args[0], line, args[2])
+
+
+def _follow_aliases(name: str, line: str, aliases: dict[str, tuple[str, str]]) -> tuple[str, str]:
+    """The magic an ``%alias_magic`` name runs and the line it gets (each alias puts its
+    parameters in front)."""
+    for _ in range(8):  # IPython refuses an alias that calls itself; eight is deeper than anyone aliases
+        if name not in aliases:
+            break
+        name, params = aliases[name]
+        line = f"{params} {line}" if params else line
+    return name, line
+
+
+def _line_invocation(written: str, line: str, shell: _Shell) -> _Invocation:
+    name, line = _follow_aliases(written, line, shell.line_aliases)
+    # IPython refuses an %alias named like a magic, but lets one redefine its own system aliases
+    if name in shell.system_aliases and (name in _DEFAULT_ALIASES or name not in _LINE_MAGICS):
+        return _Invocation("shell", name, written, f"{shell.system_aliases[name]} {line}")
+    if name in _DEFAULT_ALIASES or (shell.rehashx and name not in _LINE_MAGICS):
+        return _Invocation("shell", name, written, f"{name} {line}")
+    if name in ("sx", "system"):
+        return _Invocation("shell", name, written, line)
+    if name in ("pip", "conda"):  # they run `python -m pip` / `conda` with the line
+        return _Invocation("shell", name, written, f"{name} {line}")
+    return _Invocation("line", name, written, line)
+
+
+def _words(text: str) -> list[str]:
+    """``text`` split as a shell (and IPython's magics) would, or on blanks if it does not split."""
+    try:
+        return shlex.split(text)
+    except ValueError:
+        return text.split()
+
+
+def _script_interpreter(line: str) -> str:
+    """The program ``%%script`` runs its body with (its first argument that is not an option)."""
+    words, i = _words(line), 0
+    while i < len(words) and words[i].startswith("-"):
+        i += 2 if words[i] in ("--out", "--err", "--proc") else 1
+    return words[i] if i < len(words) else ""
+
+
+def _shell_text(inv: _Invocation) -> str | None:
+    """The script a shell runs for ``inv``, or None if it runs no shell."""
+    if inv.kind == "shell":
+        return inv.line
+    if inv.kind == "cell" and inv.name in _SHELL_CELL_MAGICS:
+        return inv.body
+    if inv.kind == "cell" and inv.name == "script" and not _RUNS_PYTHON.fullmatch(_script_interpreter(inv.line)):
+        return f"{_script_interpreter(inv.line)}\n{inv.body}"
+    return None
+
+
+def _expanded(line: str) -> list[str]:
+    """The Python IPython evaluates in a magic's line or a shell command (``{expression}``,
+    ``$name``) before running it."""
+    from IPython.utils.text import DollarFormatter
+
+    fields = []
+    try:
+        for _, name, spec, _ in DollarFormatter().parse(line):
+            if name is not None:
+                fields.append(f"{name}:{spec}" if spec else name)  # IPython's own reading of `{a[1:2]}`
+    except ValueError:  # IPython gives up here too, but has evaluated the fields before
+        pass
+    return fields
+
+
+def _heredocs(text: str) -> list[tuple[str | None, str, bool]]:
+    """The here-documents in a shell script: (the file the line writes them to or None, the
+    text, whether the shell expands ``$`` and backquotes in it)."""
+    lines, found, i = text.split("\n"), [], 0
+    while i < len(lines):
+        j = i + 1
+        for match in _HEREDOC.finditer(lines[i]):
+            tabs, quoted, end = match.group(1) == "-", bool(match.group(2)), match.group(3)
+            body = []
+            while j < len(lines) and (lines[j].lstrip("\t") if tabs else lines[j]) != end:
+                body.append(lines[j].lstrip("\t") if tabs else lines[j])
+                j += 1
+            j += 1
+            targets = [m.group(2) for m in (*_REDIRECT.finditer(lines[i]), *_TEE.finditer(lines[i]))]
+            found.append((targets[0] if targets else None, "\n".join(body) + "\n", not quoted))
+        i = j
+    return found
+
+
+def _run_target(line: str) -> tuple[str, str]:
+    """What ``%run`` runs: ("module", name) for ``-m``, else ("file", path) ('' if none)."""
+    words = _words(line)
+    for i, word in enumerate(words):
+        if not word.startswith("-") or word == "-":
+            return "file", word
+        for k, option in enumerate(word[1:]):
+            if option in "Nbm":  # options that take a value, attached or as the next word
+                value = word[k + 2:] or (words[i + 1] if i + 1 < len(words) else "")
+                if option == "m":
+                    return "module", value
+                break
+    return "file", ""
+
+
+def _load_target(line: str) -> str:
+    """The file, URL or object ``%load`` puts in the cell (its options -r, -s, -n take a value)."""
+    words, i, target = _words(line), 0, ""
+    while i < len(words):
+        if words[i] in ("-r", "-s", "-n"):
+            i += 2
+            continue
+        if not words[i].startswith("-"):
+            target = words[i]
+        i += 1
+    return target
+
+
+def _also_runs(tree: ast.Module, shell: _Shell):
+    """For each piece of code that ``tree`` makes IPython run besides itself, the candidate
+    sources of it (the first that parses is it): the Python of magics, what ``{...}`` in a
+    magic's line or a shell command evaluates, here-documents, and the files the notebook
+    writes that ``%run``, ``%load_ext`` or an import run."""
+    for inv in _invocations(tree, shell):
+        if inv.kind == "line" and inv.name in _PYTHON_LINE_MAGICS and inv.line:
+            yield _after_options(inv.line)
+        if inv.kind == "cell" and (inv.name in _PYTHON_CELL_MAGICS or inv.name not in _CELL_MAGICS
+                                   or (inv.name == "script"
+                                       and _RUNS_PYTHON.fullmatch(_script_interpreter(inv.line)))):
+            yield [inv.body]  # a cell magic the review does not know is read too, if its body is Python
+        if inv.kind == "cell" and inv.name == "timeit" and inv.line:  # the line of %%timeit is setup code
+            yield _after_options(inv.line)
+        if inv.name not in _NO_VAR_EXPAND:
+            yield from ([field] for field in _expanded(inv.line))
+        if (script := _shell_text(inv)) is not None:
+            yield from ([body] for _, body, _ in _heredocs(script))
+        yield from ([text] for text in _target_texts(inv, shell))
+    for node in _walk(tree) if shell.files else ():
+        for name in _imported_modules(node):
+            yield from ([text] for text in shell.module(name))
+
+
+def _target_texts(inv: _Invocation, shell: _Shell) -> list[str]:
+    """The texts of the file (written in the notebook) that ``%run`` or ``%load_ext`` runs."""
+    if inv.kind != "line":
+        return []
+    if inv.name == "run":
+        kind, target = _run_target(inv.line)
+        return shell.file(target) if kind == "file" else shell.module(target)
+    if inv.name in ("load_ext", "reload_ext") and (words := _words(inv.line)):
+        return shell.module(words[0])
+    return []
+
+
+def _imported_modules(node: ast.AST) -> list[str]:
+    """The absolute module names an import statement (or a ``module://`` backend) imports."""
+    if (text := _str(node)) is not None and (match := _BACKEND_MODULE.match(text.strip())):
+        return [match.group(1)]
+    if isinstance(node, ast.Import):
+        return [a.name for a in node.names]
+    if isinstance(node, ast.ImportFrom) and not node.level and node.module:
+        return [node.module, *(f"{node.module}.{a.name}" for a in node.names if a.name != "*")]
+    return []
+
+
+def _one_line_readings(transformed: str, shell: _Shell) -> list[str]:
+    """What IPython's prefilter makes of a cell that is one line after the static transforms,
+    besides the line itself: the magic automagic runs, or the call autocall writes.
+
+    Automagic runs ``name rest`` as ``%name rest`` when ``name`` is a line magic that nothing
+    in the user's namespace shadows. The review does not run the cells, so it reads a line
+    that is not Python as the magic (else it is a syntax error), and a line that is Python as
+    the magic too unless the notebook binds the name somewhere or it is a builtin.
+    """
+    from IPython.core.splitinput import LineInfo
+
+    lines = transformed.splitlines()
+    if len(lines) != 1:
+        return []
+    info = LineInfo(lines[0])
+    if info.esc or not info.ifun or info.the_rest[:1] in ("=", ","):  # an assignment is always Python
+        return []
+    python = _python(lines[0]) is not None
+    head = info.ifun.split(".", 1)[0]
+    shadowed = head in shell.bound or head in _BUILTIN_NAMES or keyword.iskeyword(head) or head in _USER_NS
+    if shell.is_line_magic(info.ifun) and not (python and shadowed):
+        name, _, line = f"{info.ifun} {info.the_rest}".partition(" ")  # as IPython's MagicHandler splits it
+        return [f"get_ipython().run_line_magic({name.lstrip('%')!r}, {line!r})"]
+    if shell.autocall and not python and _AUTOCALL_NAME.match(info.ifun) and not _NO_AUTOCALL.match(info.the_rest):
+        return [f"{info.ifun}({info.the_rest})"]
+    return []
+
+
+def _declared_encoding(source: str) -> str | None:
+    """The encoding a PEP 263 declaration in the first two lines names, if it is not UTF-8 or
+    ASCII: Python decodes a file (a module the notebook writes) with it, so its code is not the
+    text the review reads."""
+    try:
+        codec, _ = tokenize.detect_encoding(io.BytesIO(source.encode("utf-8", "surrogatepass")).readline)
+    except SyntaxError:  # a codec Python does not know: the declaration as written
+        match = re.search(r"coding[:=][ \t]*([-\w.]+)", "\n".join(source.splitlines()[:2]))
+        return match.group(1) if match else "unknown"
+    except UnicodeError:
+        return None
+    try:
+        codec = codecs.lookup(codec).name
+    except LookupError:
+        return codec
+    return None if codec in ("utf-8", "utf-8-sig", "ascii") else codec
+
+
+def _decoded(source: str, codec: str) -> str | None:
+    """The text Python reads from the UTF-8 bytes of ``source`` under ``codec``, or None."""
+    try:
+        return source.encode("utf-8").decode(codec)
+    except (LookupError, UnicodeError):
+        return None
+
+
+@functools.lru_cache(maxsize=4096)
+def _transformed(source: str) -> str:
+    """IPython's static transforms of a cell (the same whatever the notebook sets; a review
+    reads each cell several times, and a class's notebooks share most of their cells)."""
     from IPython.core.inputtransformer2 import TransformerManager
 
-    transformer, trees = TransformerManager(), {}
+    return TransformerManager().transform_cell(source)
+
+
+def _read_cell(source: str, shell: _Shell) -> ast.Module | None:
+    """The Python a cell is read as: IPython's static transforms, then the prefilter's readings
+    of a one-line cell, all of them in one module (None if none is Python)."""
+    try:
+        transformed = _transformed(source)
+        readings = [transformed, *_one_line_readings(transformed, shell)]
+        trees = [t for r in readings if (t := _python(r)) is not None]
+    except (SyntaxError, ValueError):
+        return None  # the learner's own error; the run reports it
+    except RecursionError:  # nested too deeply for the parser (how deep depends on the stack)
+        tree = ast.Module(body=[], type_ignores=[])
+        tree.too_deep = True
+        return tree
+    if not trees:
+        return None
+    for other in trees[1:]:
+        trees[0].body.extend(other.body)
+    trees[0].has_magics = any("get_ipython" in r for r in readings)
+    return trees[0]
+
+
+def _parser(shell: _Shell | None = None):
+    """A function source -> AST of what IPython runs for it (see :func:`_read_cell`; the Python
+    that magics, files and shells run appended at module level; None if none of it is Python),
+    parsing each distinct source once. Each tree carries ``notes``: flags found while reading."""
+    trees, shell = {}, shell or _Shell()
 
     def parse(source: str, depth: int = 0) -> ast.Module | None:
-        if source not in trees:
-            try:
-                transformed = transformer.transform_cell(source)
-                tree = ast.parse(transformed)
-            except (SyntaxError, ValueError):
-                tree, transformed = None, ""  # the learner's own error; the run reports it
-            except RecursionError:  # nested too deeply for the parser (how deep depends on the stack)
-                tree, transformed = ast.Module(body=[], type_ignores=[]), ""
-                tree.too_deep = True
-            # only magics (``get_ipython().run_line_magic(...)``) run Python of their own; a magic
-            # inside a magic's body is read too, not endlessly
-            if tree is not None and depth < 3 and "get_ipython" in transformed:
-                for candidates in _magic_python(tree):
-                    inner = next((t for c in candidates if (t := parse(c, depth + 1)) is not None), None)
-                    if inner is not None:
-                        tree.body.extend(inner.body)
-            trees[source] = tree
-        return trees[source]
+        if source in trees:
+            return trees[source]
+        trees[source] = None  # a file that imports or runs itself is read once
+        tree, notes = _read_cell(source, shell), set()
+        if (codec := _declared_encoding(source)) is not None:
+            notes.add(f"declares the source encoding `{codec}`, so the Python that runs may not be "
+                      "the text the review reads")
+            decoded = _decoded(source, codec)
+            if decoded not in (None, source) and (inner := parse(decoded, depth + 1)) is not None:
+                tree = tree or ast.Module(body=[], type_ignores=[])
+                tree.body.extend(inner.body)
+                notes |= inner.notes
+                tree.has_magics = getattr(tree, "has_magics", True) or getattr(inner, "has_magics", True)
+        if tree is not None and depth < 3 and not getattr(tree, "too_deep", False):
+            # code run by code run by ... a cell is read too, not endlessly
+            for candidates in list(_also_runs(tree, shell)):
+                inner = next((t for c in candidates if (t := parse(c, depth + 1)) is not None), None)
+                if inner is not None:
+                    tree.body.extend(inner.body)
+                    notes |= inner.notes
+                    tree.has_magics = getattr(tree, "has_magics", True) or getattr(inner, "has_magics", True)
+        if tree is None and notes:
+            tree = ast.Module(body=[], type_ignores=[])
+        if tree is not None:
+            tree.notes, tree.complete = notes, True
+        trees[source] = tree
+        return tree
 
     return parse
 
@@ -195,23 +691,6 @@ def _is_magic_call(node: ast.AST) -> bool:
 def _after_options(text: str) -> list[str]:
     """``text`` and its suffixes after each leading word, so ``-n 1 -r 3 stmt`` yields ``stmt``."""
     return [text[m.start():] for m in re.finditer(r"\S+", text)][:8]
-
-
-def _magic_python(tree: ast.Module):
-    """For each magic in ``tree`` that runs Python, the candidate sources of that Python (the
-    first that parses is it)."""
-    for node in ast.walk(tree):
-        if not _is_magic_call(node):
-            continue
-        args = [_str(a) for a in node.args]
-        if node.func.attr == "run_line_magic" and len(args) == 2 and args[0] in _PYTHON_LINE_MAGICS and args[1]:
-            yield _after_options(args[1])
-        elif node.func.attr == "run_cell_magic" and len(args) == 3 and args[0] and args[2] is not None:
-            name, line, body = args
-            if name in _PYTHON_CELL_MAGICS or (name == "script" and (line or "").startswith("python")):
-                yield [body]
-            if name == "timeit" and line:  # the line of %%timeit is setup code
-                yield _after_options(line)
 
 
 def _is_machinery(module: str) -> bool:
@@ -265,7 +744,7 @@ def _via(written: str, path: str) -> str:
 def _machinery_names(tree: ast.Module) -> set[str]:
     """Names that a cell binds to the grading machinery (``from kalman_course import checks``)."""
     names = set()
-    for node in ast.walk(tree):
+    for node in _walk(tree):
         if isinstance(node, ast.Import):
             for a in node.names:
                 if _is_machinery(a.name):
@@ -393,15 +872,22 @@ class _Notebook:
     released_stars: set[str] = field(default_factory=set)
     #: body id -> its scope's names (see :func:`_scope_names`)
     scopes: dict[int, tuple] = field(default_factory=dict)
+    #: IPython's state as the notebook sets it (aliases, autocall, files written)
+    shell: _Shell = field(default_factory=_Shell)
+    #: top-level modules the release imports, and the IPython flags its own cells raise
+    released_modules: set[str] = field(default_factory=set)
+    released_ipython: set[str] = field(default_factory=set)
 
     def scope_names(self, body: list[ast.stmt]):
         return _scope_names(body, self.scopes)
 
 
 def _notebook(release_trees: list[ast.Module], submission_trees: list[ast.Module], to_write, machinery,
-              check_api=frozenset()) -> _Notebook:
-    nb = _Notebook(to_write, machinery, set(check_api))
+              check_api=frozenset(), shell: _Shell | None = None) -> _Notebook:
+    nb = _Notebook(to_write, machinery, set(check_api), shell=shell or _Shell())
     for tree in release_trees:
+        for node in _walk(tree):
+            nb.released_modules |= {name.split(".", 1)[0] for name in _imported_modules(node)}
         for name, how, what in nb.scope_names(tree.body)[0]:
             if how == "import":
                 nb.released_imports[name] = what
@@ -457,14 +943,27 @@ class _Reader:
             return "IPython.get_ipython"
         return f"builtins.{name}" if name in _BUILTIN_NAMES else ""
 
+    def module_lookup(self, name: str) -> str:
+        """What ``name`` is at module level (``globals()[name]``), wherever the code is."""
+        scopes, self.scopes = self.scopes, []
+        try:
+            return self.lookup(name)
+        finally:
+            self.scopes = scopes
+
     def resolve(self, node: ast.AST | None) -> str:
+        """The dotted path of what ``node`` evaluates to (``numpy.linalg``), '' if unknown; the
+        IPython shell's ``get_ipython`` is ``IPython.get_ipython`` whichever way it is reached."""
+        path = self._resolve(node)
+        return "IPython.get_ipython" if path in _GET_IPYTHON else path
+
+    def _resolve(self, node: ast.AST | None) -> str:
         """The dotted path of what ``node`` evaluates to (``numpy.linalg``), '' if unknown."""
         if isinstance(node, ast.Name):
             return self.lookup(node.id)
         if isinstance(node, ast.Attribute):
             base = self.resolve(node.value)
-            path = f"{base}.{node.attr}" if base else ""
-            return "IPython.get_ipython" if path in _GET_IPYTHON else path
+            return f"{base}.{node.attr}" if base else ""
         if isinstance(node, ast.Call):
             return self._resolve_call(node)
         if isinstance(node, ast.Subscript):
@@ -473,6 +972,8 @@ class _Reader:
                 return ""
             if base == "sys.modules":
                 return key
+            if base == "globals()":  # `globals()["get_ipython"]` is the module-level name
+                return self.module_lookup(key)
             if base.endswith(".__dict__"):
                 return f"{base[:-len('.__dict__')]}.{key}"
             return f"builtins.{key}" if base == "builtins" else ""
@@ -494,6 +995,10 @@ class _Reader:
         if func == "builtins.getattr" and len(node.args) >= 2:
             base, key = self.resolve(node.args[0]), _str(node.args[1])
             return f"{base}.{key}" if base and key else ""
+        if func == "globals().get" and node.args and (key := _str(node.args[0])) is not None:
+            return self.module_lookup(key)
+        if func.endswith(".__dict__.get") and node.args and (key := _str(node.args[0])) is not None:
+            return f"{func[:-len('.__dict__.get')]}.{key}"
         return ""
 
     # scopes
@@ -698,9 +1203,9 @@ class _Reader:
     def visit_Call(self, node, shell_base: bool = False):
         func = node.func
         arguments = [*node.args, *node.keywords]
-        if _is_magic_call(node) or (isinstance(func, ast.Attribute) and func.attr in _MAGIC_METHODS
-                                    and self.resolve(func.value) == "get_ipython()"
-                                    and isinstance(func.value, ast.Call) and not func.value.args):
+        if _is_magic_call(node):  # only the exact call IPython writes: under another name it is the shell
+            if _constant_args(node) is None:
+                self.flag(node, f"calls `{_text(node.func)}` with arguments computed at run time, {_UNREADABLE}")
             for child in arguments:  # a magic is no flag, but what it names may be
                 self.visit(child)
             return
@@ -714,6 +1219,7 @@ class _Reader:
         self._check_setattr(node, callee)
         self._check_namespace_call(node)
         self._check_by_name(node, callee)
+        self._check_namespace_read(node)
         path = self.resolve(node)
         if path and path not in ("get_ipython()", "globals()") and id(node) not in self.reported:
             if path.endswith(".__dict__") and path.startswith(("kalman_course", _RUNTIME_MODULE)):
@@ -787,15 +1293,39 @@ class _Reader:
                 self.flag(node, f"calls `getattr` on `{shown}`{_via(shown, owner)}, a course module")
             elif key is None and owner and owner.split(".")[0] in _SENSITIVE_ROOTS:
                 self.flag(node, f"calls `getattr` on `{shown}`{_via(shown, owner)} with a computed name")
+            elif key in _SHELL_METHODS_BY_NAME:
+                self.flag(node, f"gets `{key}` by name (`getattr`), {_SHELL}")
         elif callee in ("operator.attrgetter", "operator.methodcaller"):
-            names = {part for a in node.args if (s := _str(a)) for part in s.split(".")}
+            names = {part for a in node.args[:1 if callee.endswith("methodcaller") else None]
+                     if (s := _str(a)) for part in s.split(".")}
             for name in sorted(names & self.nb.to_write):
                 self.flag(node, f"gets `{name}` by name (`{callee}`) instead of writing it")
+            for name in sorted(names & _SHELL_METHODS_BY_NAME):
+                self.flag(node, f"gets `{name}` by name (`{callee}`), {_SHELL}")
         elif (isinstance(node.func, ast.Call) and node.args
               and self.resolve(node.func.func) in ("operator.attrgetter", "operator.methodcaller")):
             owner = self.resolve(node.args[0])
             if owner.startswith(("kalman_course", _RUNTIME_MODULE)):
                 self.flag(node, f"applies `{_text(node.func)}` to a course module")
+
+    def _check_namespace_read(self, node: ast.Call):
+        """``globals().values()``, ``vars(builtins).items()``: every value of a namespace, the
+        IPython shell's ``get_ipython`` among them, without naming it."""
+        if isinstance(node.func, ast.Attribute) and node.func.attr in ("values", "items"):
+            owner = self.resolve(node.func.value)
+            if owner == "globals()" or owner in ("builtins.__dict__", "__main__.__dict__"):
+                self.flag(node, f"reads every value of `{_text(node.func.value)}`, {_SHELL}")
+
+    def visit_Subscript(self, node):
+        """``globals()[name]`` under a computed name reaches any name, ``get_ipython`` among them."""
+        key = _str(node.slice)
+        if isinstance(node.ctx, ast.Load) and key is None:
+            owner = self.resolve(node.value)
+            if owner == "globals()" or owner in ("builtins", "builtins.__dict__", "__main__.__dict__"):
+                self.flag(node, f"reads `{_text(node.value)}` under a computed name, {_SHELL}")
+        elif key in _SHELL_METHODS and self.resolve(node.value).endswith(".__dict__"):  # vars(exit)["_ip"]
+            self.flag(node, f"uses `{_text(node)}`, {_SHELL}")
+        self.generic_visit(node)
 
     # assignments
 
@@ -851,6 +1381,329 @@ class _Reader:
     visit_AsyncWith = visit_With
 
 
+# --- IPython's state, as the notebook sets it ----------------------------------------------------
+
+def _survey(sources: list[str]) -> _Shell:
+    """IPython's state as the cells set it (aliases, autocall, the files they write), read
+    twice: the first reading finds the aliases and files that the second one reads with."""
+    shell = _Shell()
+    for _ in range(2):
+        parse = _parser(shell)
+        shell = _settings([t for s in sources if (t := parse(s)) is not None], shell)
+        if not (shell.line_aliases or shell.cell_aliases or shell.system_aliases or shell.autocall
+                or shell.rehashx or shell.files):
+            break  # nothing read differently a second time (the names bound are read with in the end)
+    return shell
+
+
+def _settings(trees: list[ast.Module], shell: _Shell) -> _Shell:
+    """The state that ``trees`` set, their magics read with the aliases of ``shell``."""
+    new, bound = _Shell(), set()
+    try:
+        resolve = _Reader(_notebook([], trees, set(), set())).resolve  # `o = open` is open too
+    except RecursionError:  # nested too deeply to resolve aliases; the review proper reports it
+        resolve = _Reader(_Notebook(set(), set())).resolve
+    for tree in trees:
+        bound |= {name for name, _, _ in _scope_names(tree.body, {})[0]}
+        for inv in _invocations(tree, shell):
+            _apply_setting(inv, new)
+        try:
+            writes = _python_writes(tree, resolve)
+        except RecursionError:  # nested too deeply to resolve: the cell's own review says so
+            writes = []
+        for name_node, text, append, _ in writes:
+            if (path := _str(name_node)) is not None and text is not None:
+                _write(new, path, text, append)
+    new.bound = frozenset(bound)
+    return new
+
+
+def _write(shell: _Shell, path: str, text: str, append: bool):
+    key = _normalised(path)
+    versions = shell.files.setdefault(key, [])
+    versions.append((versions[-1] if append and versions else "") + text)
+
+
+def _apply_setting(inv: _Invocation, shell: _Shell):
+    """What one magic changes in ``shell``: an alias, autocall, a file written."""
+    if inv.kind == "line" and inv.name == "alias_magic":
+        _add_magic_alias(inv.line, shell)
+    elif inv.kind == "line" and inv.name == "alias" and len(parts := inv.line.strip().split(None, 1)) == 2:
+        shell.system_aliases[parts[0]] = parts[1]
+    elif inv.kind == "line" and (inv.name == "autocall" or (inv.name == "config" and "autocall" in inv.line)):
+        shell.autocall = True
+    elif inv.kind == "line" and inv.name == "rehashx":
+        shell.rehashx = True
+    elif inv.kind == "cell" and inv.name in ("writefile", "file"):
+        words = _words(inv.line)
+        if paths := [w for w in words if not w.startswith("-")]:
+            _write(shell, paths[-1], inv.body, append=any(w in ("-a", "--append") for w in words))
+    if (script := _shell_text(inv)) is not None:
+        for path, body, expands in _heredocs(script):
+            if path and not (expands and re.search(r"[$`\\]", body)):  # else the shell writes other text
+                _write(shell, path, body, append=False)
+
+
+def _add_magic_alias(line: str, shell: _Shell):
+    """``%alias_magic [-l] [-c] [-p PARAMS] name target``: neither -l nor -c makes both."""
+    words, kinds, params, names, i = _words(line), set(), "", [], 0
+    while i < len(words):
+        if words[i] in ("-l", "--line", "-c", "--cell"):
+            kinds.add(words[i].lstrip("-")[0])
+        elif words[i] in ("-p", "--params"):
+            params, i = (words[i + 1] if i + 1 < len(words) else ""), i + 1
+        elif words[i].startswith("--params="):
+            params = words[i].split("=", 1)[1]
+        else:
+            names.append(words[i].lstrip("%"))
+        i += 1
+    if len(names) >= 2:
+        for kind, aliases in (("l", shell.line_aliases), ("c", shell.cell_aliases)):
+            if not kinds or kind in kinds:
+                aliases[names[0]] = (names[1], params.strip("'\""))
+
+
+# --- flags about what IPython runs ---------------------------------------------------------------
+
+def _ipython_flags(tree: ast.Module, nb: _Notebook) -> set[str]:
+    """The magics and shell escapes of ``tree`` that change how IPython reads later cells or
+    run code the review cannot read (less what the release's own cells do)."""
+    flags = set()
+    for inv in _invocations(tree, nb.shell):
+        if (script := _shell_text(inv)) is not None:
+            flags |= _shell_flags(script)
+        if inv.kind == "line":
+            flags |= _line_magic_flags(inv, nb.shell)
+        elif inv.kind == "cell" and inv.name in ("writefile", "file") and _COMPILED_FILE.search(inv.line.strip()):
+            flags.add(f"writes `{inv.line.strip()}`, compiled Python the review cannot read")
+        elif inv.kind == "cell" and inv.name not in _CELL_MAGICS:
+            flags.add(f"runs `%%{inv.written}`, a cell magic the review does not know, so it cannot tell what runs")
+    return flags - nb.released_ipython
+
+
+def _changes_reading(name: str, line: str) -> bool:
+    """Whether ``%name line`` changes how IPython reads later cells (``%config`` of how output
+    looks, ``%alias`` that only lists, ``%autoawait`` with asyncio do not)."""
+    if name == "config":
+        match = re.match(r"\s*(\w+)\.(\w+)\s*=", line)
+        return match is not None and not (match.group(1) in _HONEST_CONFIG_CLASSES or (
+            match.group(1) in _SHELL_CLASSES and match.group(2) in _HONEST_SHELL_TRAITS))
+    if name == "alias":
+        return bool(line.strip())
+    if name == "autoawait":
+        return line.strip().lower() not in _HONEST_AWAIT
+    return True
+
+
+def _line_magic_flags(inv: _Invocation, shell: _Shell) -> set[str]:
+    shown, name, line = inv.shown(), inv.name, inv.line
+    if name in _READING_MAGICS and _changes_reading(name, line):
+        return {f"uses `{shown}`, {_READS_LATER}"}
+    if name == "run":
+        kind, target = _run_target(line)
+        if target and not (shell.file(target) if kind == "file" else shell.module(target)):
+            what = f"the module `{target}`" if kind == "module" else f"`{target}`"
+            return {f"runs {what} (`{shown}`), whose code is not in the notebook"}
+    if name in ("load", "loadpy") and (target := _load_target(line)) and not shell.file(target):
+        return {f"loads `{target}` into the cell (`{shown}`), {_UNREADABLE}"}
+    if name in ("load_ext", "reload_ext") and (words := _words(line)):
+        if shell.module(words[0]):
+            return {f"loads `{words[0]}`, an IPython extension written in the notebook (`{shown}`), "
+                    "which is handed the IPython shell"}
+        if words[0].split(".")[0] not in _HONEST_EXTENSIONS:
+            return {f"loads the IPython extension `{words[0]}` (`{shown}`), which is handed the IPython shell"}
+    if name == "rerun":  # the history it reruns is a list any cell can change (`In[3] = ...`)
+        return {f"reruns input from IPython's history (`{shown}`), {_UNREADABLE}"}
+    if name == "store" and "-r" in _words(line):
+        return {f"restores variables with `{shown}`, objects the review cannot read"}
+    return set()
+
+
+def _shell_flags(script: str) -> set[str]:
+    """A shell script that runs Python, writes a Python file or installs a package from a path
+    or URL: code the review cannot read (``ls``, ``pip list``, ``pip install numpy`` are none)."""
+    flags = set()
+    text = re.sub(r"\{[^{}]*\bexecutable\b[^{}]*\}|\$\{?sys\.executable\}?", "python", script)  # {sys.executable}
+    text = _PYTHON_PIP.sub("pip", text)
+    text = re.sub(r"(?m)(^|\s)#.*$", r"\1", text)  # comments (`# then run python`) run nothing
+    for segment in re.split(r"\n|;|&&|\|\||\||&|\$\(|`", text):  # commands, and those in $(...) and `...`
+        words = [w.strip("'\"()") for w in segment.split()]
+        while words and (words[0] in _COMMAND_PREFIXES or re.match(r"\w+=", words[0])):
+            words.pop(0)  # `env X=1 sudo python ...` runs python
+        if not words:
+            continue
+        shown, command = _shortened(segment), os.path.basename(words[0])
+        if _RUNS_PYTHON.search(segment) and command not in _READ_ONLY_COMMANDS - {"rm", "rmdir", "pip", "pip3"}:
+            flags.add(f"runs Python in another process (`{shown}`), {_UNREADABLE}")
+            continue
+        if (command in ("pip", "pip3", "conda", "mamba", "uv") and "install" in words
+                and any(_LOCAL_PACKAGE.search(w) for w in words[words.index("install") + 1:])):
+            flags.add(f"installs a package from a path or URL (`{shown}`), {_UNREADABLE}")
+        targets = [m.group(2) for m in (*_REDIRECT.finditer(segment), *_TEE.finditer(segment))]
+        if any(_PYTHON_FILE.search(t) for t in targets) or (
+                command not in _READ_ONLY_COMMANDS and any(_PYTHON_FILE.search(w) for w in words[1:])):
+            flags.add(f"writes a Python file from a shell (`{shown}`), {_UNREADABLE}")
+    return flags
+
+
+@functools.lru_cache(maxsize=None)
+def _installed(top: str) -> bool:
+    """Whether a module of that name can be imported where the review runs (the kernel's
+    environment) without the notebook writing it."""
+    if top in sys.stdlib_module_names or top in sys.builtin_module_names or top in sys.modules:
+        return True
+    try:
+        return importlib.util.find_spec(top) is not None
+    except (ImportError, ValueError):
+        return False
+
+
+def _import_flags(tree: ast.Module, nb: _Notebook) -> set[str]:
+    """Imports of a module that is neither installed nor written in the notebook: something
+    the review cannot read (a shell, a computed file name) put it where the kernel looks."""
+    flags = set()
+    for node in _walk(tree):
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            names = [node.module]
+        elif (text := _str(node)) is not None and (match := _BACKEND_MODULE.match(text.strip())):
+            names = [match.group(1)]
+        else:
+            continue
+        for name in names:
+            top = name.split(".", 1)[0]
+            if not (top in nb.released_modules or _installed(top)
+                    or nb.shell.module(name) or nb.shell.module(top)):
+                flags.add(f"imports `{name}`, a module that is not installed and whose code is not in the notebook")
+    return flags
+
+
+def _open_call(node: ast.AST, resolve) -> tuple[ast.AST, bool, bool] | None:
+    """For a call that opens a file: (the node naming the file, whether it writes, whether it
+    appends); else None."""
+    if not isinstance(node, ast.Call):
+        return None
+    callee = resolve(node.func)
+    if callee in _OPENERS and node.args:
+        name, mode = node.args[0], (node.args[1:2] or [k.value for k in node.keywords if k.arg in ("mode", "flags")])
+    elif (isinstance(node.func, ast.Attribute) and node.func.attr == "open"
+          and (name := _path_name(node.func.value, resolve)) is not None):
+        mode = node.args[:1] or [k.value for k in node.keywords if k.arg == "mode"]
+    else:
+        return None
+    if callee == "os.open":
+        return name, not (mode and resolve(mode[0]) == "os.O_RDONLY"), False
+    text = _str(mode[0]) if mode else "r"
+    return name, text is None or bool(set(text) & set("wax+")), text is not None and "a" in text
+
+
+def _path_name(node: ast.AST, resolve) -> ast.AST | None:
+    """The node naming the file of ``Path(name)``, else None."""
+    if isinstance(node, ast.Call) and resolve(node.func) in _PATHS and len(node.args) == 1:
+        return node.args[0]
+    return None
+
+
+def _written_text(call: ast.Call) -> str | None:
+    """What ``f.write(...)``, ``f.writelines([...])`` or ``p.write_text(...)`` writes, if constant."""
+    values = call.args[0].elts if (call.func.attr == "writelines" and call.args
+                                   and isinstance(call.args[0], (ast.List, ast.Tuple))) else call.args[:1]
+    texts = [v.value for v in values if isinstance(v, ast.Constant) and isinstance(v.value, (str, bytes))]
+    if len(call.args) != 1 or len(texts) != len(values):
+        return None
+    return "".join(t if isinstance(t, str) else t.decode("utf-8", "replace") for t in texts)
+
+
+def _with_text(body: list[ast.stmt], name: str) -> str | None:
+    """What a ``with open(...) as name:`` body writes, if every use of ``name`` writes a constant."""
+    module, texts, uses = ast.Module(body=body, type_ignores=[]), [], 0
+    for node in ast.walk(module):
+        if isinstance(node, ast.Name) and node.id == name:
+            uses += 1
+        if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                and node.func.attr in ("write", "writelines")
+                and isinstance(node.func.value, ast.Name) and node.func.value.id == name):
+            texts.append(_written_text(node))
+    return "".join(texts) if texts and None not in texts and uses == len(texts) else None
+
+
+_WRITES = ("write", "writelines", "write_text", "write_bytes")
+
+
+def _python_writes(tree: ast.Module, resolve) -> list[tuple[ast.AST | None, str | None, bool, ast.AST]]:
+    """The files Python code in ``tree`` writes: (the node naming the file or None, the text if
+    constant, whether it appends, the node that writes)."""
+    writes, handled = [], set()
+    for node in _walk(tree):
+        if isinstance(node, (ast.With, ast.AsyncWith)):
+            for item in node.items:
+                opened = _open_call(item.context_expr, resolve)
+                if opened and opened[1] and isinstance(item.optional_vars, ast.Name):
+                    handled.add(id(item.context_expr))
+                    text = _with_text(node.body, item.optional_vars.id)
+                    writes.append((opened[0], text, opened[2], item.context_expr))
+        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr in _WRITES:
+            base, text = node.func.value, _written_text(node)
+            if node.func.attr in ("write_text", "write_bytes"):
+                writes.append((_path_name(base, resolve), text, False, node))
+            elif (opened := _open_call(base, resolve)) and opened[1]:
+                handled.add(id(base))
+                writes.append((opened[0], text, opened[2], node))
+        elif isinstance(node, ast.Call) and resolve(node.func) in _COPIES and len(node.args) >= 2:
+            python = [a for a in node.args[:2] if _str(a) and _PYTHON_FILE.search(_str(a))]
+            writes.append(((python or node.args[1:2])[0], None, False, node))
+    for node in _walk(tree):
+        if id(node) not in handled and (opened := _open_call(node, resolve)) and opened[1]:
+            writes.append((opened[0], None, opened[2], node))
+    return writes
+
+
+def _names_another_file(node: ast.AST) -> bool:
+    """Whether a computed file name visibly ends in a suffix that is not Python's
+    (``f"run_{k}.csv"``, ``os.path.join(folder, "belief.npy")``)."""
+    last = (node.values[-1] if isinstance(node, ast.JoinedStr) and node.values else node.right
+            if isinstance(node, ast.BinOp) else node.args[-1] if isinstance(node, ast.Call) and node.args else node)
+    text = _str(last)
+    return text is not None and re.search(r"\.\w+$", text) is not None and not _PYTHON_FILE.search(text)
+
+
+def _command_text(node: ast.AST, resolve) -> str | None:
+    """The command an argument of ``subprocess.run`` and the like names, if constant
+    (``sys.executable`` reads as python)."""
+    if (text := _str(node)) is not None:
+        return text
+    if isinstance(node, (ast.List, ast.Tuple)):
+        parts = [_command_text(e, resolve) for e in node.elts]
+        return None if None in parts else " ".join(parts)
+    if resolve(node) == "sys.executable":
+        return "python"
+    return None
+
+
+def _write_flags(tree: ast.Module, nb: _Notebook) -> set[str]:
+    """Python that writes a Python file the review cannot read (or a file whose name it cannot
+    read), or starts a process that runs Python or writes such a file."""
+    flags, resolve = set(), _Reader(nb).resolve
+    for name_node, text, _, node in _python_writes(tree, resolve):
+        path = _str(name_node) if name_node is not None else None
+        if path is not None and _COMPILED_FILE.search(path):
+            flags.add(f"writes `{path}`, compiled Python the review cannot read")
+        elif path is not None and text is None and _PYTHON_FILE.search(path):
+            flags.add(f"writes `{path}`, a Python file, with text the review cannot read")
+        elif path is None and not (name_node is not None and _names_another_file(name_node)):
+            flags.add(f"writes a file whose name the review cannot read (`{_text(node)}`)")
+    for node in _walk(tree):
+        if isinstance(node, ast.Call) and resolve(node.func) in _PROCESSES:
+            arguments = [*node.args, *(k.value for k in node.keywords if k.arg in ("args", "cmd"))]
+            parts = [_command_text(a, resolve) for a in arguments]
+            if all(p is None for p in parts):
+                flags.add(f"runs a command the review cannot read (`{_text(node)}`)")
+            else:
+                flags |= _shell_flags(" ".join(p or "?" for p in parts))
+    return flags
+
+
 def _rebinding_flags(tree: ast.Module, nb: _Notebook) -> set[str]:
     """Module-level rebinding of the names the release imports, and ``global`` declarations of them."""
     flags = set()
@@ -864,7 +1717,7 @@ def _rebinding_flags(tree: ast.Module, nb: _Notebook) -> set[str]:
             flags.add(f"deletes `{name}`, a name the exercise imports")
         else:
             flags.add(f"rebinds `{name}`, a name the exercise imports")
-    for node in ast.walk(tree):
+    for node in _walk(tree):
         if isinstance(node, ast.Global):
             for name in node.names:
                 if name in nb.released_imports:
@@ -878,7 +1731,7 @@ def _cell_flags(tree: ast.Module, nb: _Notebook) -> set[str]:
         return {_TOO_DEEP}
     to_write, machinery = nb.to_write, nb.machinery
     flags = set()
-    for node in ast.walk(tree):
+    for node in _walk(tree):
         if isinstance(node, ast.Import):
             for a in node.names:
                 if _is_machinery(a.name) or a.name.split(".", 1)[0] in _ESCAPES:
@@ -913,12 +1766,14 @@ def _cell_flags(tree: ast.Module, nb: _Notebook) -> set[str]:
             for inner in ast.walk(node):
                 if isinstance(inner, ast.Attribute) and inner.attr == node.name and _dotted(inner):
                     flags.add(f"`{node.name}` calls `{_dotted(inner)}` instead of doing the work")
-    reader = _Reader(nb)
+    reader, ipython = _Reader(nb), set(getattr(tree, "notes", ()))
     try:
         reader.visit(tree)
+        # what IPython makes the cell run beyond its Python: magics, shells, files, unknown modules
+        ipython |= _ipython_flags(tree, nb) | _import_flags(tree, nb) | _write_flags(tree, nb)
     except RecursionError:  # the walk recurses; code nested this deeply is worth reading by hand anyway
         reader.flags.add(_TOO_DEEP)
-    return flags | reader.flags | _rebinding_flags(tree, nb)
+    return flags | reader.flags | _rebinding_flags(tree, nb) | ipython
 
 
 def _functions_to_write(release, parse) -> set[str]:
@@ -973,11 +1828,13 @@ def review_flags(submission, release) -> list[str]:
     """
     cells = identify_cells(submission, release)
     released = [c for c in release.cells if c.cell_type == "code"]
-    parse = _parser()
-    to_write = _functions_to_write(release, parse)
-    release_trees = [t for c in released if (t := parse(c.source))]
     learner_cells = [(i, c) for i, c in enumerate(submission.cells)
                      if c.get("cell_type") == "code" and i not in cells.graders]
+    # IPython's state (aliases, autocall, files written) as the cells that run set it
+    shell = _survey([*(c.source for _, c in learner_cells), *(c.source for c in released)])
+    parse = _parser(shell)
+    to_write = _functions_to_write(release, parse)
+    release_trees = [t for c in released if (t := parse(c.source))]
     learner_trees = [t for _, c in learner_cells if (t := parse(c.source))]
     machinery = set()
     # the cells that run: what a grader cell holds in the submission is replaced before the run
@@ -985,7 +1842,8 @@ def review_flags(submission, release) -> list[str]:
     for tree in {id(t): t for t in all_trees}.values():  # a cell the learner left as released is read once
         machinery |= _machinery_names(tree)
     check_api = {"CheckFailed", "SUCCESS", *(grader_info(c)[0] for c in released if grader_info(c))}
-    nb = _notebook(release_trees, learner_trees, to_write, machinery, check_api)
+    nb = _notebook(release_trees, learner_trees, to_write, machinery, check_api, shell)
+    nb.released_ipython = {flag for tree in release_trees for flag in _ipython_flags(tree, nb)}
     solution_calls = release.metadata.get("kalman_course", {}).get("course_calls", {})
     for name, paths in solution_calls.items():
         nb.released_calls.setdefault(name, set()).update(paths)
