@@ -12,6 +12,21 @@ changes the value instead of only the shape. The challenge's cases are NEES reco
 seeded Monte Carlo runs of the ESKF on simulated IMU trajectories with exact truth
 (lecture 09 §2).
 
+Under a graded run's seed (:mod:`kalman_course.checks.cases`) every family is drawn anew:
+the NEES cases at other steps of the run and the NIS cases at other held-out poses, both
+with the navigation and body frames turned by drawn rotations (e_p → C e_p, δθ → Bᵀ δθ: the
+same run in other axes, so P stays strongly correlated); the mixing matrices; the gate's
+map-matching failures (another outlier seed) and its innovations, turned alike (redrawn
+until every listed mistake decides differently from the reference and from the others);
+the verdict's three settings (Q and R factors drawn around 1, 1/4 and 4, each redrawn until
+its record keeps its verdict and its distance from the bounds); the interval's (dof, n_runs,
+confidence) with the same spread; and the seed of the Monte Carlo runs and which 5 of them
+the short cases take (the 5 redrawn until every listed mistake decides differently; a step
+whose run average lies within 1e-4 of a bound is left out). Real and simulated, as in the
+self-check: the NEES, NIS and verdict cases are the reference filter on the real KITTI
+cruise excerpt (turned, mixed or rescaled); the gate's run is real but its map-matching
+failures are injected; the Monte Carlo runs are wholly simulated.
+
 A learner's function is run on every case before anything is judged, and a known mistake
 is named only when it reproduces the learner's results on all cases (a wrong formula
 may agree with the right one on a single case), so each hint names the mistake made.
@@ -30,7 +45,9 @@ from kalman_course.filters import eskf
 from kalman_course.evaluation import metrics
 from kalman_course.evaluation import consistency as consistency_stats
 from kalman_course.evaluation.pose import POSE_INDEX, evaluate
+from kalman_course.checks import cases as inputs  # `cases` names the lists of cases below
 from kalman_course.checks.harness import CheckFailed, call, check, type_name
+from kalman_course.core import so3
 from kalman_course.data import load_kitti
 from kalman_course.filters.eskf_config import load_config
 
@@ -38,6 +55,10 @@ from kalman_course.filters.eskf_config import load_config
 EXCERPT = "cruise"
 OUTLIER_SEED = 0
 VERDICT_SETTINGS = (("reference", 1.0, 1.0), ("R / 4", 1.0, 0.25), ("R x 4", 1.0, 4.0))
+#: Under a run seed, each verdict setting's drawn ranges of the Q and R factors and the verdict
+#: its records keep (the reference stays consistent within ±7 %, so R moves by less).
+VERDICT_DRAWN = (((0.8, 1.25), (0.93, 1.07), "consistent"), ((0.8, 1.25), (0.18, 0.35), "overconfident"),
+                 ((0.8, 1.25), (2.8, 5.5), "underconfident"))
 #: Seed of the mixing matrices of the re-expressed cases.
 MIXING_SEED = 9
 
@@ -53,13 +74,35 @@ RTOL = 1e-6
 # cases
 # --------------------------------------------------------------------------------------
 
-def _mixing(n: int, seed: int) -> np.ndarray:
-    """A seeded, well-conditioned, non-symmetric and non-orthogonal n × n matrix."""
-    rng = np.random.default_rng([MIXING_SEED, n, seed])
+def _mixing(n: int, seed: int, family: str) -> np.ndarray:
+    """A seeded, well-conditioned, non-symmetric and non-orthogonal n × n matrix (drawn anew
+    under a run seed, one stream per ``family``)."""
+    rng = inputs.rng(f"consistency.{family}.mixing", [MIXING_SEED, n, seed])
     A = np.eye(n) + 0.6 * rng.standard_normal((n, n))
     while np.linalg.cond(A) > 30:           # keep the re-expressed cases well conditioned
         A = np.eye(n) + 0.6 * rng.standard_normal((n, n))
     return A
+
+
+def _turned(generator: np.random.Generator) -> np.ndarray:
+    """T (15, 15) that re-expresses the error state [δp, δv, δθ, δb_a, δb_ω] in navigation and
+    body frames turned by drawn rotations C and B: δp, δv → C δp, C δv (navigation frame),
+    δθ, δb_a, δb_ω → Bᵀ · (body frame), and P → T P Tᵀ.
+
+    The same run in other axes: a correct NEES or NIS is unchanged (T is orthogonal, and the
+    lidar's R, isotropic per block, is unchanged by it), but every input is new, and rotations
+    about arbitrary axes keep P as correlated as in the run's own axes (they spread each
+    block's correlations over all of its entries).
+    """
+    C, B = so3.exp(generator.normal(size=3)), so3.exp(generator.normal(size=3))
+    T = np.zeros((15, 15))
+    for i, M in enumerate((C, C, B.T, B.T, B.T)):
+        T[3 * i:3 * i + 3, 3 * i:3 * i + 3] = M
+    return T
+
+
+#: Where a turned run's label says so (see :func:`_turned`).
+_TURNED = " (navigation and body frames turned)"
 
 
 @functools.lru_cache(maxsize=None)
@@ -77,24 +120,32 @@ def nees_cases():
     Per time: the 6-dof pose error, the 3-dof position error, the 6-dof position-velocity
     error (position and velocity errors correlate at ~0.7 in P, so dropping the
     off-diagonal of P changes the NEES by tens of percent), and the pose error in mixed
-    coordinates; once, the 1-dof heading error.
+    coordinates; once, the 1-dof heading error. Under a run seed: three other steps, in
+    turned frames (:func:`_turned`; the heading is then about the turned body's z axis).
     """
     ex, res = _reference_run()
     m = evaluate(res.t, res.position, res.rotation, ex.truth, res.P)
-    e6 = np.concatenate([m["position_error"], m["attitude_error"]], axis=1)
     dv = res.velocity - ex.truth.interpolate(res.t).velocity
+    # [δp, δv, δθ] of every step and its covariance, the first 9 error states
+    err = np.concatenate([m["position_error"], dv, m["attitude_error"]], axis=1)
+    cov = np.asarray(res.P)[:, :9, :9]
+    steps, turned = np.linspace(5, len(res.t) - 1, 3).astype(int), ""
+    if inputs.drawing():
+        g = inputs.rng("consistency.nees", 0)
+        steps = np.sort(g.choice(np.arange(5, len(res.t)), 3, replace=False))
+        T = _turned(g)[:9, :9]
+        err, cov, turned = err @ T.T, T @ cov @ T.T, _TURNED
     pv = np.r_[0:6]
     cases = []
-    for j, k in enumerate(np.linspace(5, len(res.t) - 1, 3).astype(int)):
-        P6 = res.P[k][np.ix_(POSE_INDEX, POSE_INDEX)]
-        cases.append((f"the 6-dof pose error at step {k}", e6[k], P6))
-        cases.append((f"the 3-dof position error at step {k}", e6[k, :3], P6[:3, :3]))
-        cases.append((f"the 6-dof position-velocity error at step {k}",
-                      np.concatenate([m["position_error"][k], dv[k]]), res.P[k][np.ix_(pv, pv)]))
-        A = _mixing(6, j)
-        cases.append((f"the 6-dof pose error at step {k} in mixed coordinates", A @ e6[k], A @ P6 @ A.T))
+    for j, k in enumerate(steps):
+        e6, P6 = err[k, POSE_INDEX], cov[k][np.ix_(POSE_INDEX, POSE_INDEX)]
+        cases.append((f"the 6-dof pose error at step {k}{turned}", e6, P6))
+        cases.append((f"the 3-dof position error at step {k}{turned}", e6[:3], P6[:3, :3]))
+        cases.append((f"the 6-dof position-velocity error at step {k}{turned}", err[k, pv], cov[k][np.ix_(pv, pv)]))
+        A = _mixing(6, j, "nees")
+        cases.append((f"the 6-dof pose error at step {k} in mixed coordinates", A @ e6, A @ P6 @ A.T))
         if j == 0:   # one 1-dof case: no correlations, so even element-wise functions of P are finite
-            cases.append((f"the 1-dof heading error at step {k}", e6[k, 5:], P6[5:, 5:]))
+            cases.append((f"the 1-dof heading error at step {k}{turned}", e6[5:], P6[5:, 5:]))
     return tuple(cases)
 
 
@@ -107,7 +158,9 @@ def prior_cases():
     The first cases observe the 6-dof pose block of the prior through a square,
     non-symmetric G with a non-diagonal R (the residual in mixed coordinates), where
     G P̌ Gᵀ, Gᵀ P̌ G and G P̌ G all have the same shape but different values; the rest are the
-    KITTI lidar update itself: G (6, 15) and R = diag(σ²) with σ = 0.2 m and 0.3°.
+    KITTI lidar update itself: G (6, 15) and R = diag(σ²) with σ = 0.2 m and 0.3°. Under a
+    run seed: six other held-out poses, the run in turned frames (:func:`_turned`; G and R
+    are unchanged by it).
     """
     ex = load_kitti(EXCERPT)
     k0, s0 = ex.initial_state()
@@ -118,14 +171,22 @@ def prior_cases():
     res = eskf.run(ex.imu, s0, cfg, ex.gravity, lidar=used, start=k0, output_times=lid.t[held])
     R = np.diag(cfg.lidar_std ** 2)
     G = np.array(eskf.POSE_G)
+    rows, turned = held[np.linspace(3, len(held) - 2, 6).astype(int)], ""
+    if inputs.drawing():
+        g = inputs.rng("consistency.nis", 0)
+        rows = np.sort(g.choice(held[3:len(held) - 1], 6, replace=False))
+        T, turned = _turned(g), _TURNED
     kitti, square = [], []
-    for n, j in enumerate(held[np.linspace(3, len(held) - 2, 6).astype(int)]):
+    for n, j in enumerate(rows):
         r = int(np.searchsorted(res.t, lid.t[j] - 1e-9))
         y = eskf.pose_residual(res.position[r], res.rotation[r], lid.position[j], lid.rotation[j])
-        kitti.append((f"the KITTI lidar innovation at t = {lid.t[j]:.1f} s (G 6×15)", y, res.P[r], G, R))
+        P = res.P[r]
+        if turned:   # G T = T₆ G: the residual turns with the pose rows of T
+            y, P = T[np.ix_(POSE_INDEX, POSE_INDEX)] @ y, T @ P @ T.T
+        kitti.append((f"the KITTI lidar innovation at t = {lid.t[j]:.1f} s (G 6×15){turned}", y, P, G, R))
         if n < 3:
-            A = _mixing(6, 10 + n)
-            P6 = res.P[r][np.ix_(POSE_INDEX, POSE_INDEX)]
+            A = _mixing(6, 10 + n, "nis")
+            P6 = P[np.ix_(POSE_INDEX, POSE_INDEX)]
             # ν' = A ν = A (G' δx) with δx the pose error: G' = A (square), R' = A R Aᵀ
             square.append((f"the lidar innovation at t = {lid.t[j]:.1f} s in mixed coordinates "
                            "(square, non-symmetric G 6×6)", A @ y, P6, A, A @ R @ A.T))
@@ -147,13 +208,41 @@ def gate_cases():
     99.5 % quantile, in the lower tail (below the 0.5 % quantile, which a two-sided
     test would reject), and at NIS 0.93 (below the confidence as a number, above the 1 %
     quantile); and outlier-run innovations in mixed coordinates, where S is
-    strongly correlated (the NIS, hence the right decision, is unchanged).
+    strongly correlated (the NIS, hence the right decision, is unchanged). An innovation
+    of the run whose NIS lies within 1 % of the gate is left out (none of the self-check's
+    does), so that no way of rounding the NIS can flip a decision.
+
+    Under a run seed: other map-matching failures (another outlier seed), and the whole run
+    in turned frames (:func:`_turned`), from which every case is built as above; drawn again
+    until every listed mistake decides differently from the reference and from every other
+    (:func:`_gate_separates`: a run whose failures all stay within the gate's νᵀ ν would let
+    the gate without S pass for one that accepts everything).
     """
     ex = load_kitti(EXCERPT)
-    bad, _ = consistency.inject_outliers(ex.lidar, OUTLIER_SEED)
+    if not inputs.drawing():
+        return _gate_cases_of(ex, OUTLIER_SEED, np.eye(6))
+    g = inputs.rng("consistency.gate", 0)
+    for _ in range(20):
+        seed = int(g.integers(1, 2**31))           # never the self-check's OUTLIER_SEED (0)
+        cases = _gate_cases_of(ex, seed, _turned(g)[np.ix_(POSE_INDEX, POSE_INDEX)])
+        if _gate_separates(cases):
+            return cases
+    raise RuntimeError("no drawn outlier run gives gate cases that separate the listed mistakes")
+
+
+def _gate_cases_of(ex, seed: int, T6: np.ndarray) -> tuple:
+    """The gate cases of the run with the outliers of ``seed``, its innovations turned by T6."""
+    bad, _ = consistency.inject_outliers(ex.lidar, seed)
     run = consistency.run_gated(ex, bad)
+    innovation = [T6 @ y for y in run.innovation]
+    covariance = [T6 @ S @ T6.T for S in run.S]
     q = metrics.chi2_ppf
-    cases = [(run.innovation[i], run.S[i], 0.99) for i in range(len(run.t))]
+
+    def clear(y, S, c):
+        return abs(metrics.nis(y, S) / q(c, len(y)) - 1.0) >= 0.01
+
+    cases = [(innovation[i], covariance[i], 0.99) for i in range(len(run.t))
+             if clear(innovation[i], covariance[i], 0.99)]
     # (index, NIS as a multiple of a quantile (p), confidences to test it at)
     border = ((10, 0.97, 0.99, (0.99,)), (20, 1.03, 0.99, (0.99, 0.999)), (30, 0.9, 0.99, (0.99, 0.95)),
               (40, 1.1, 0.99, (0.99,)), (50, 0.99, 0.99, (0.99, 0.95)), (60, 0.5, 0.005, (0.99, 0.95)),
@@ -161,7 +250,7 @@ def gate_cases():
               (100, 27.0, None, (0.99,)))
     for i, factor, p, confidences in border:
         for dims in (slice(0, 6), slice(0, 3)):
-            y, S = run.innovation[i][dims], run.S[i][dims, dims]
+            y, S = innovation[i][dims], covariance[i][dims, dims]
             # p None: the NIS is `factor` itself (0.93: above the 1 % quantile, below 0.99;
             # 27: above q(0.99; 9) = 21.7, below m · q(0.99; m) for m = 3)
             y = _rescaled(y, S, factor * (1.0 if p is None else q(p, len(y))))
@@ -170,16 +259,37 @@ def gate_cases():
     # any threshold with a wrong number of degrees of freedom shows which number it used
     for k in range(1, 20):
         for dims in (slice(0, 6), slice(0, 3)):
-            y, S = run.innovation[110 + k][dims], run.S[110 + k][dims, dims]
+            y, S = innovation[110 + k][dims], covariance[110 + k][dims, dims]
             cases.append((_rescaled(y, S, 0.5 * (q(0.99, k) + q(0.99, k + 1))), S, 0.99))
     for n, i in enumerate(range(5, len(run.t), 12)):
-        A = _mixing(6, 20 + n)
-        y, S = A @ run.innovation[i], A @ run.S[i] @ A.T
-        cases.append((y, S, 0.99))
+        A = _mixing(6, 20 + n, "gate")
+        y, S = A @ innovation[i], A @ covariance[i] @ A.T
+        if clear(y, S, 0.99):
+            cases.append((y, S, 0.99))
         if n < 8:        # and near the gate, where a NIS off by tens of percent flips decisions
             for factor in (0.5, 0.8, 1.25, 2.0):
                 cases.append((_rescaled(y, S, factor * q(0.99, 6)), S, 0.99))
     return tuple(cases)
+
+
+def _gate_separates(cases) -> bool:
+    """Whether the reference and each of :func:`_gate_mistakes` decide differently from each other
+    somewhere on ``cases``, so that each hint names its own mistake. νᵀ S ν is left out: its hint
+    is the one of accepting everything, which names it too (S holds centimetres: νᵀ S ν is tiny)."""
+    q = metrics.chi2_ppf
+    values = [metrics.nis(y, S) for y, S, _ in cases]
+    rules = [lambda v, m, c, y, S: v <= q(c, m)]
+    rules += [decide for decide, why in _gate_mistakes() if not why.startswith("The NIS must weight ν by S⁻¹ (the")]
+    decisions = {tuple(bool(rule(v, len(y), c, y, S)) for v, (y, S, c) in zip(values, cases)) for rule in rules}
+    return len(decisions) == len(rules)
+
+
+def _clear_verdict(values, dof, confidence, verdict) -> bool:
+    """Whether a record's verdict is ``verdict`` with its mean at least 1 % from both bounds."""
+    lo, hi = metrics.chi2_bounds(dof, len(values), confidence)
+    mean = float(np.mean(values))
+    return (consistency_stats.verdict(values, dof, confidence) == verdict
+            and min(abs(mean / lo - 1.0), abs(mean / hi - 1.0)) >= 0.01)
 
 
 @functools.lru_cache(maxsize=None)
@@ -189,16 +299,30 @@ def verdict_cases():
     The 6-dof pose NIS and the 3-dof position NIS of each verdict setting at 95 %, and
     records rescaled to means that separate the ways of misplacing N, dof and the
     confidence (see the comments).
+
+    Under a run seed the three settings' Q and R factors are drawn (:data:`VERDICT_DRAWN`),
+    each setting again until both its records keep their verdict with means at least 1 %
+    from the bounds (the rescaled records are then built from the drawn reference).
     """
     ex = load_kitti(EXCERPT)
     k0, s0 = ex.initial_state()
+    g = inputs.rng("consistency.verdict", 0)
     out = []
-    for label, qf, rf in VERDICT_SETTINGS:
-        res = eskf.run(ex.imu, s0, consistency.scaled_config("kitti_lidar", qf, rf), ex.gravity,
-                       lidar=ex.lidar, start=k0)
-        nu, S = np.array(res.innovation), np.array(res.S)
-        out.append((f"the KITTI run with {label}", metrics.nis(nu, S), 6, 0.95))
-        out.append((f"the KITTI run with {label}, position only", metrics.nis(nu[:, :3], S[:, :3, :3]), 3, 0.95))
+    for (label, qf, rf), (q_range, r_range, verdict) in zip(VERDICT_SETTINGS, VERDICT_DRAWN):
+        for _ in range(100):
+            if inputs.drawing():
+                qf, rf = inputs.log_uniform(g, *q_range), inputs.log_uniform(g, *r_range)
+                label = f"Q x {qf:.3f} and R x {rf:.3f}"
+            res = eskf.run(ex.imu, s0, consistency.scaled_config("kitti_lidar", qf, rf), ex.gravity,
+                           lidar=ex.lidar, start=k0)
+            nu, S = np.array(res.innovation), np.array(res.S)
+            records = [(f"the KITTI run with {label}", metrics.nis(nu, S), 6, 0.95),
+                       (f"the KITTI run with {label}, position only", metrics.nis(nu[:, :3], S[:, :3, :3]), 3, 0.95)]
+            if not inputs.drawing() or all(_clear_verdict(*r[1:], verdict) for r in records):
+                break
+        else:
+            raise RuntimeError(f"no drawn Q and R factors in {q_range}, {r_range} give {verdict} records")
+        out.extend(records)
     reference = out[0][1]
     N = len(reference)
     bounds = metrics.chi2_bounds
@@ -536,14 +660,45 @@ def _interval_mistakes():
     ]
 
 
+#: Confidences of the interval cases: never 0.5, where c and 1 − c coincide, and only those
+#: whose normal quantile a learner may have written out (the normal approximation's mistake).
+INTERVAL_CONFIDENCES = (0.9, 0.95, 0.99)
+#: Under a run seed, the ranges of (dof, n_runs) of the interval cases drawn in place of the
+#: fixed ones, in their order: one value of few dof (the approximations are off by percents),
+#: a KITTI-sized record, and means of 3 to 100 values.
+INTERVAL_DRAWN = (((2, 9), (1, 1)), ((3, 12), (150, 600)), ((8, 20), (10, 40)), ((2, 5), (20, 100)),
+                  ((4, 9), (10, 40)), ((2, 4), (3, 12)), ((5, 12), (2, 6)))
+
+
+@functools.lru_cache(maxsize=None)
+def interval_cases():
+    """(dof, n_runs, confidence) of the interval check.
+
+    Confidences from :data:`INTERVAL_CONFIDENCES`; n_runs 1 and several, dof ≠ n_runs, so that
+    each misplaced factor changes the interval. Under a run seed each is drawn from its range
+    in :data:`INTERVAL_DRAWN`, never one of the fixed cases.
+    """
+    n_updates = len(load_kitti(EXCERPT).lidar.t) - 1          # one NIS per lidar pose after the first
+    fixed = ((6, 1, 0.95), (6, n_updates, 0.95), (15, 20, 0.95), (3, 50, 0.99), (6, 20, 0.99),
+             (2, 7, 0.9), (9, 3, 0.9))
+
+    def draw(g):
+        out = []
+        for (d_lo, d_hi), (n_lo, n_hi) in INTERVAL_DRAWN:
+            case = fixed[0]
+            while case in fixed or case[0] == case[1]:
+                case = (int(g.integers(d_lo, d_hi + 1)),
+                        int(round(inputs.log_uniform(g, n_lo, n_hi))), float(g.choice(INTERVAL_CONFIDENCES)))
+            out.append(case)
+        return tuple(out)
+
+    return inputs.fixed_or_drawn(fixed, draw, "consistency.interval")
+
+
 @check
 def check_chi2_interval(chi2_interval):
     """The learner's ``chi2_interval(dof, n_runs, confidence)`` for KITTI-sized records."""
-    n_updates = len(load_kitti(EXCERPT).lidar.t) - 1          # one NIS per lidar pose after the first
-    # confidences 0.9, 0.95, 0.99 (never 0.5, where c and 1 − c coincide); n_runs 1 and
-    # several, dof ≠ n_runs, so that each misplaced factor changes the interval
-    cases = ((6, 1, 0.95), (6, n_updates, 0.95), (15, 20, 0.95), (3, 50, 0.99), (6, 20, 0.99),
-             (2, 7, 0.9), (9, 3, 0.9))
+    cases = interval_cases()
     labels = [f"dof={d}, n_runs={n}, confidence={c}" for d, n, c in cases]
     outcomes = [_outcome(chi2_interval, c, _interval) for c in cases]
     _judge(outcomes, cases, labels, lambda d, n, c: metrics.chi2_bounds(d, n, c), _interval_mistakes(),
@@ -794,22 +949,70 @@ def monte_carlo_cases():
 
     The ESKF on ``MC_RUNS`` seeded synthetic IMU trajectories with exact truth
     (:func:`kalman_course.chapters.consistency.monte_carlo`), tuned and with Q / 100: the
-    15-state NEES and the 6-dof pose NEES, of all runs and of the first 5, at 90, 95 and
+    15-state NEES and the 6-dof pose NEES, of all runs and of 5 of them, at 90, 95 and
     99 %. n_runs (20 or 5) is never the number of steps (150) nor a dof, so averaging along
     the wrong axis, or taking n_runs from the wrong one, changes the shape or the interval;
     no run average lies closer than 1e-4 (relative) to its bound, so no correct way of
     computing the mean or the quantiles can flip a decision.
+
+    Under a run seed the runs have another first seed (never one of the self-check's); the
+    5-run cases take 5 drawn runs, drawn again (cheap: no new runs) until the reference and
+    each of :func:`_monte_carlo_mistakes` decide differently somewhere (so each mistake is
+    named by its own hint); a step whose run average lies within 1e-4 of a bound is left
+    out of its case. The runs themselves are redrawn only if no choice of the 5 separates
+    the mistakes, so a graded run costs as many simulated runs as the self-check.
     """
+    if not inputs.drawing():
+        runs = [consistency.monte_carlo(n_runs=MC_RUNS, seed=MC_SEED, duration=MC_DURATION, process_scale=scale)
+                for _, scale in MC_FILTERS]
+        return _monte_carlo_frozen(_monte_carlo_built(runs, np.arange(5)))
+    g = inputs.rng("consistency.monte_carlo", MC_SEED)
+    for _ in range(5):
+        # seeds from MC_RUNS on: no run shares a seed with the self-check's runs 0 … MC_RUNS − 1
+        seed = int(g.integers(MC_RUNS, 2**31))
+        runs = [consistency.monte_carlo(n_runs=MC_RUNS, seed=seed, duration=MC_DURATION, process_scale=scale)
+                for _, scale in MC_FILTERS]
+        for _ in range(200):
+            few = np.sort(g.choice(MC_RUNS, 5, replace=False))
+            cases = [(label, _clear_steps(nees, dof, c), dof, c)
+                     for label, nees, dof, c in _monte_carlo_built(runs, few)]
+            if _monte_carlo_separates(cases):
+                return _monte_carlo_frozen(cases)
+    raise RuntimeError("no drawn Monte Carlo runs give cases that separate the listed mistakes")
+
+
+def _monte_carlo_built(runs, few) -> list:
+    """The cases of the Monte Carlo results ``runs`` (one per filter of MC_FILTERS); the 5-run
+    cases take the runs ``few``."""
     cases = []
-    for label, scale in MC_FILTERS:
-        mc = consistency.monte_carlo(n_runs=MC_RUNS, seed=MC_SEED, duration=MC_DURATION, process_scale=scale)
+    for (label, _), mc in zip(MC_FILTERS, runs):
         cases += [(f"the 15-state NEES of {MC_RUNS} runs of {label}", mc.nees, 15, 0.95),
                   (f"the 6-dof pose NEES of {MC_RUNS} runs of {label}", mc.nees_pose, 6, 0.95),
-                  (f"the 15-state NEES of 5 runs of {label}", mc.nees[:5], 15, 0.99),
-                  (f"the 6-dof pose NEES of 5 runs of {label}", mc.nees_pose[:5], 6, 0.9)]
+                  (f"the 15-state NEES of 5 runs of {label}", mc.nees[few], 15, 0.99),
+                  (f"the 6-dof pose NEES of 5 runs of {label}", mc.nees_pose[few], 6, 0.9)]
+    return cases
+
+
+def _monte_carlo_frozen(cases) -> tuple:
     for _, runs, _, _ in cases:
         runs.setflags(write=False)           # cached: shared by every call of the check
     return tuple(cases)
+
+
+def _clear_steps(runs, dof, confidence) -> np.ndarray:
+    """The columns (steps) of ``runs`` whose run average is at least 1e-4 (relative) from both
+    bounds: there no correct way of computing the mean or the quantiles can flip a decision."""
+    bounds = np.array(metrics.chi2_bounds(dof, runs.shape[0], confidence))
+    distance = np.abs(runs.mean(axis=0)[:, None] / bounds - 1.0).min(axis=1)
+    return np.ascontiguousarray(runs[:, distance >= 1e-4])
+
+
+def _monte_carlo_separates(cases) -> bool:
+    """Whether the reference and every listed mistake decide differently on some case."""
+    rules = [_monte_carlo_reference] + [rule for rule, _ in _monte_carlo_mistakes()]
+    decisions = {b"".join(np.asarray(rule(runs, dof, c), dtype=bool).tobytes() for _, runs, dof, c in cases)
+                 for rule in rules}
+    return len(decisions) == len(rules)
 
 
 def _inside(average, lo, hi):

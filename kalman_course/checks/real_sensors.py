@@ -23,6 +23,19 @@ Cases (what is real, what is simulated)
   first 60 s, run with σ's that are too small and too large (median NIS off its χ² median by
   factors from 1/1300 to 39), cut into blocks of 1, 2 and 3 components of one unit each.
 
+Under a graded run's seed (:mod:`kalman_course.checks.cases`) every family is drawn anew from
+the same sources: the Gauss–Markov σ, T and τ (made up, over the same ranges, a step 2.5–6
+times τ among them); the augmented cases at three other IMU samples of ``turns`` (real truth
+state and IMU reading) with other made-up tilts, biases, σ, T and τ; other pairs of real
+``turns`` truth poses (the same spread of gaps, other tilts, another rigid transform of 1 rad
+to nearly π, redrawn until some pair turns by 1 rad), hence other residual and Jacobian cases
+(the measured increments' noise, simulated, drawn again); the drift metric on another window
+of the same real VO tracks and truth of sequence 00 (its start, length and stride, the segment
+lengths and step drawn; segments with a rotational error under 5e-4 rad left out, so that the
+arccos of the trace still agrees within the tolerance); and for the challenge the real VO
+filter's runs over a stretch of 40–60 s with other σ factors (too small and too large) and
+other blocks of 1, 2 and 3 components.
+
 A learner's function is run on every case before anything is judged, and a known mistake is
 named only when it reproduces the learner's results on every case (a wrong formula is
 consistent; agreeing with the right one on one case is a coincidence), so each hint names the
@@ -43,7 +56,8 @@ Tolerances (and why; "measured" numbers are over these cases)
   by more than 1 in some block entry (measured).
 - Drift: :data:`DRIFT_RTOL` relative on every segment's errors: the angle by an arccos of the
   trace loses precision at small angles (at the smallest rotational error here, 1e-3 rad, it
-  differs from the norm of the Log by up to 1.8e-9 relative, measured); the other ways of
+  differs from the norm of the Log by up to 1.8e-9 relative, measured; a drawn case keeps no
+  segment under 5e-4 rad, where it loses ~1e-8); the other ways of
   writing it agree to ~1e-14; every listed mistake is off by more than 20 % on some segment
   (measured).
 - Challenge: :data:`RTOL` relative on the new σ (solve, inv, Cholesky and einsum give NIS values
@@ -59,6 +73,7 @@ from typing import Callable
 
 import numpy as np
 
+from kalman_course.checks import cases as inputs  # `cases` names the lists of cases below
 from kalman_course.checks.harness import CheckFailed, as_array, call, check, type_name
 from kalman_course.chapters import visual_odometry as vo
 from kalman_course.chapters.real_sensors import relative_jacobian_by_differences
@@ -86,8 +101,20 @@ _SIGMA_B = np.array([1.5, 0.8, 2.5, 0.02, 0.01, 0.03])
 GM_CASES = ((_SIGMA_A, 0.104, 0.5), (_SIGMA_A, 0.01, 3.0), (_SIGMA_B, 2.0, 0.5), (_SIGMA_B, 0.37, 1.3),
             (_SIGMA_A, 1.0, 5.0))
 
-#: Augmented-matrix cases: (IMU step or interval T s, τ s); one KITTI state each.
+#: Under a run seed, the Gauss–Markov cases' ranges of τ (s) and of T/τ, in the order of GM_CASES:
+#: a lidar step, an IMU step, a step 2.5–6 times τ (where 1 − T/τ < −1.5), and two in between.
+#: τ never reaches 1 s (where T τ and T/τ coincide) and T/τ never 1 (where τ/T does).
+GM_DRAWN = (((0.3, 0.8), (0.1, 0.4)), ((1.5, 5.0), (0.002, 0.01)), ((0.3, 0.8), (2.5, 6.0)),
+            ((1.1, 2.0), (0.2, 0.5)), ((3.0, 6.0), (0.1, 0.3)))
+#: ... and the ranges of the stationary σ per component, m (position) and rad (attitude).
+SIGMA_DRAWN = ((0.1, 3.0), (0.002, 0.05))
+
+#: Augmented-matrix cases: (IMU step or interval T s, τ s); one KITTI state each (IMU sample).
 AUG_STEPS = ((0.01, 0.5), (0.104, 1.0), (1.0, 3.0))
+AUG_SAMPLES = (700, 2500, 4400)
+#: Under a run seed, the ranges of T and of τ (s) of each augmented case: T always below τ
+#: and the ranges apart, so that swapping them changes F_e.
+AUG_DRAWN = (((0.005, 0.02), (0.3, 0.8)), ((0.05, 0.2), (0.6, 1.6)), ((0.5, 1.5), (2.0, 5.0)))
 #: ESKF noise densities of the cases (accel, gyro, accel bias, gyro bias), as chapter 08's.
 DENSITY = np.array([0.03, 1e-3, 1.67e-4, 2.91e-6])
 
@@ -96,6 +123,11 @@ POSE_PAIRS = ((100, 1), (100, 30), (260, 10), (380, 30), (530, 10))
 #: The rigid transform every pair is also moved by: rotation vector (rad) and translation (m).
 MOVE_ROTATION = np.array([0.3, -0.5, 2.0])
 MOVE_TRANSLATION = np.array([120.0, -45.0, 3.0])
+#: Under a run seed, the ranges of the frames between the two poses of each pair, in the order
+#: of POSE_PAIRS, and the least rotation (rad) the largest relative rotation must reach (the
+#: fixed pairs' reaches 1.45 rad; subtracting rotation vectors is wrong by O(|ΔŘ| |y_θ|)).
+POSE_GAPS_DRAWN = ((1, 2), (20, 35), (8, 14), (20, 35), (8, 14))
+POSE_TURN_DRAWN = 1.0
 
 #: Drift cases: VO systems, frames (every ``DRIFT_STRIDE``-th of the first ``DRIFT_FRAMES``
 #: after the anchor frame), segment lengths (m) and the step between segment starts (frames).
@@ -103,12 +135,24 @@ DRIFT_SYSTEMS = ("ORB-SLAM2", "S-PTAM")
 DRIFT_FRAMES, DRIFT_STRIDE = 1550, 5
 DRIFT_LENGTHS = (50.0, 100.0, 200.0, 400.0)
 DRIFT_STEP = 3
+#: Under a run seed: the window's length (frames) and stride, each segment length's range (m)
+#: and the step's; a drawn case keeps the segments whose rotational error is at least
+#: DRIFT_LEAST_ANGLE rad (where an arccos of the trace still agrees to ~1e-8) and every
+#: length must keep DRIFT_LEAST_SEGMENTS of them.
+DRIFT_WINDOW_DRAWN, DRIFT_STRIDES_DRAWN = (1300, 1800), (4, 5, 6)
+DRIFT_LENGTHS_DRAWN = ((40.0, 60.0), (80.0, 130.0), (170.0, 260.0), (330.0, 450.0))
+DRIFT_STEPS_DRAWN = (2, 3, 4)
+DRIFT_LEAST_ANGLE, DRIFT_LEAST_SEGMENTS = 5e-4, 5
 
 #: Challenge: the calibration stretch (s) and the σ's the runs use, as factors of 1 cm / 0.01°.
 NIS_SECONDS = 60.0
 NIS_FACTORS = (1.0, 30.0)
 _NIS_STD0 = np.array([0.01, 0.01, 0.01, 1.7e-4, 1.7e-4, 1.7e-4])
 NIS_BLOCKS = ((0, 3), (3, 6), (0, 1), (5, 6), (1, 3))
+#: Under a run seed: the stretch's range (s, never longer than the self-check's) and each run's
+#: σ factor range (too small, too large), drawn per VO system.
+NIS_SECONDS_DRAWN = (40.0, 60.0)
+NIS_FACTORS_DRAWN = ((0.6, 1.6), (20.0, 45.0))
 
 
 # --------------------------------------------------------------------------------------
@@ -182,6 +226,26 @@ def _array(value, shape: tuple, what: str, diag_hint: bool = False) -> np.ndarra
 _phi = eskf_augmented.gauss_markov_decay
 
 
+def _drawn_sigma(g: np.random.Generator) -> np.ndarray:
+    """Six stationary σ, each its own: three in m, three in rad (:data:`SIGMA_DRAWN`)."""
+    return np.r_[inputs.log_uniform(g, *SIGMA_DRAWN[0], 3), inputs.log_uniform(g, *SIGMA_DRAWN[1], 3)]
+
+
+def _draw_gm_cases(g: np.random.Generator) -> tuple:
+    cases = []
+    for tau_range, ratio_range in GM_DRAWN:
+        tau = float(inputs.log_uniform(g, *tau_range))
+        cases.append((_drawn_sigma(g), tau * float(inputs.log_uniform(g, *ratio_range)), tau))
+    return tuple(cases)
+
+
+@functools.lru_cache(maxsize=None)
+def gm_cases():
+    """(σ (6,), T, τ) of the Gauss–Markov check: :data:`GM_CASES`, or under a run seed drawn from
+    the same ranges (:data:`GM_DRAWN`, :data:`SIGMA_DRAWN`; all made up, as the fixed ones)."""
+    return inputs.fixed_or_drawn(GM_CASES, _draw_gm_cases, "real_sensors.gauss_markov")
+
+
 def _gm_F(sigma, T, tau):
     return _phi(T, tau) * np.eye(6)
 
@@ -194,11 +258,30 @@ def _gm_label(sigma, T, tau) -> str:
     return f"T = {T:g} s, τ = {tau:g} s, σ = ({', '.join(f'{v:g}' for v in sigma)})"
 
 
+def _longest_step(cases) -> tuple[float, float]:
+    """(T, τ) of the case whose step is longest against τ: the one a hint quotes."""
+    return max(((T, tau) for _, T, tau in cases), key=lambda step: step[0] / step[1])
+
+
+def _minus(x: float) -> str:
+    return f"{x:.3g}".replace("-", "−")
+
+
+def _euler_hint(cases) -> str:
+    T, tau = _longest_step(cases)
+    grows = {2.0: "doubles", 3.0: "triples"}.get(round(T / tau - 1.0, 12), f"grows {T / tau - 1.0:.3g}-fold")
+    return (f"F_e = (1 − T/τ) I is the first-order (Euler) step of ė = −e/τ, right only for T ≪ τ: "
+            f"at T = {T:g} s and τ = {tau:g} s it is {_minus(1.0 - T / tau)} I, an error that flips sign and "
+            f"{grows}. The equation has an exact solution over any step (lecture 10 §1): how much of e "
+            "survives T seconds?")
+
+
+def _gm_f_mistakes(cases):
+    """The wrong F_e formulas of (σ, T, τ) and their hints (one quotes the longest step of ``cases``)."""
+    return [(lambda s, T, tau: (1.0 - T / tau) * np.eye(6), _euler_hint(cases))] + _GM_F_MISTAKES
+
+
 _GM_F_MISTAKES = [
-    (lambda s, T, tau: (1.0 - T / tau) * np.eye(6),
-     "F_e = (1 − T/τ) I is the first-order (Euler) step of ė = −e/τ, right only for T ≪ τ: at T = 2 s "
-     "and τ = 0.5 s it is −3 I, an error that flips sign and triples. The equation has an exact solution "
-     "over any step (lecture 10 §1): how much of e survives T seconds?"),
     (lambda s, T, tau: np.exp(-tau / T) * np.eye(6),
      "the exponent is upside down: a longer step (or a shorter memory τ) must leave LESS of the error; "
      "the exponent is −T/τ, a ratio of seconds to seconds"),
@@ -221,11 +304,17 @@ _GM_F_MISTAKES = [
      "model replaces"),
 ]
 
+def _gm_q_mistakes(cases):
+    """The wrong Q_e formulas of (σ, T, τ) and their hints (one quotes the longest step of ``cases``)."""
+    T, tau = _longest_step(cases)
+    first_order = (f"Q_e = 2σ²T/τ is the first-order variance (the continuous density 2σ²/τ times T), right "
+                   f"only for T ≪ τ: at T = {T:g} s, τ = {tau:g} s it is {2.0 * T / tau:.3g}σ², far above the "
+                   "stationary σ². Use the exact solution: the new part must keep the error's variance "
+                   "stationary, F_e diag(σ²) F_eᵀ + Q_e = diag(σ²)")
+    return [(lambda s, T, tau: np.diag(2.0 * s ** 2 / tau * T), first_order)] + _GM_Q_MISTAKES
+
+
 _GM_Q_MISTAKES = [
-    (lambda s, T, tau: np.diag(2.0 * s ** 2 / tau * T),
-     "Q_e = 2σ²T/τ is the first-order variance (the continuous density 2σ²/τ times T), right only for "
-     "T ≪ τ: at T = 2 s, τ = 0.5 s it is 8σ², far above the stationary σ². Use the exact solution: the "
-     "new part must keep the error's variance stationary, F_e diag(σ²) F_eᵀ + Q_e = diag(σ²)"),
     (lambda s, T, tau: np.diag(s ** 2 * T),
      "σ²T is how a white noise of density σ integrates; here σ is the error's stationary standard "
      "deviation (m or rad), so σ²T has the wrong units (m²·s). The new part must keep the variance "
@@ -255,15 +344,16 @@ _GM_Q_MISTAKES = [
 @check
 def check_gauss_markov_blocks(gauss_markov_blocks):
     """``gauss_markov_blocks(sigma, T, tau)`` returns (F_e (6, 6), Q_e (6, 6)) of one step."""
+    cases = gm_cases()
     results = [_pair(call(gauss_markov_blocks, sigma, T, tau), "gauss_markov_blocks", ("F_e", "Q_e"))
-               for sigma, T, tau in GM_CASES]
-    labels = [_gm_label(*case) for case in GM_CASES]
+               for sigma, T, tau in cases]
+    labels = [_gm_label(*case) for case in cases]
     F = [_array(r[0], (6, 6), f"F_e ({label})", diag_hint=True) for r, label in zip(results, labels)]
-    _judge("F_e", F, GM_CASES, labels, _gm_F, _GM_F_MISTAKES,
+    _judge("F_e", F, cases, labels, _gm_F, _gm_f_mistakes(cases),
            "the error decays with time constant τ; F_e = φ I with φ the share of the error that survives "
            "T seconds (lecture 10 §1)")
     Q = [_array(r[1], (6, 6), f"Q_e ({label})", diag_hint=True) for r, label in zip(results, labels)]
-    _judge("Q_e", Q, GM_CASES, labels, _gm_Q, _GM_Q_MISTAKES,
+    _judge("Q_e", Q, cases, labels, _gm_Q, _gm_q_mistakes(cases),
            "Q_e is the covariance of what is new in the error after the step; it must keep the error's "
            "variance stationary, F_e diag(σ²) F_eᵀ + Q_e = diag(σ²)")
 
@@ -274,11 +364,21 @@ def check_gauss_markov_blocks(gauss_markov_blocks):
 
 @functools.lru_cache(maxsize=None)
 def augmented_cases():
-    """(F (15, 15), B Q Bᵀ (15, 15), σ (6,), T, τ) at KITTI truth states (real) with made-up biases."""
+    """(F (15, 15), B Q Bᵀ (15, 15), σ (6,), T, τ) at KITTI truth states (real) with made-up biases.
+
+    Under a run seed: three other IMU samples of the excerpt (their truth state and real IMU
+    reading), T, τ (:data:`AUG_DRAWN`) and σ (:data:`SIGMA_DRAWN`) drawn, and other tilts and
+    biases.
+    """
     ex = load_kitti("turns")
-    rng = np.random.default_rng(10)
+    rng = inputs.rng("real_sensors.augmented", 10)
+    settings = zip(AUG_STEPS, AUG_SAMPLES, (_SIGMA_A, _SIGMA_B, _SIGMA_A[::-1].copy()))
+    if inputs.drawing():
+        samples = np.sort(rng.choice(np.arange(10, len(ex.imu.t) - 10), len(AUG_DRAWN), replace=False))
+        steps = [tuple(float(inputs.log_uniform(rng, *r)) for r in ranges) for ranges in AUG_DRAWN]
+        settings = zip(steps, samples, [_drawn_sigma(rng) for _ in AUG_DRAWN])
     cases = []
-    for (T, tau), k, sigma in zip(AUG_STEPS, (700, 2500, 4400), (_SIGMA_A, _SIGMA_B, _SIGMA_A[::-1].copy())):
+    for (T, tau), k, sigma in settings:
         nav = ex.truth.state_at(float(ex.imu.t[k]))
         R = nav.rotation @ so3.exp(rng.normal(size=3) * 0.3)
         b_a, b_w = rng.normal(size=3) * 0.05, rng.normal(size=3) * 0.005
@@ -403,12 +503,46 @@ def check_augmented_matrices(augmented_matrices):
 
 @functools.lru_cache(maxsize=None)
 def pose_pairs():
-    """(label, p0, R0, p1, R1): real KITTI truth poses (tilted), and the same pairs moved rigidly."""
+    """(label, p0, R0, p1, R1): real KITTI truth poses (tilted), and the same pairs moved rigidly.
+
+    Under a run seed: other pairs of the excerpt's truth (gaps from :data:`POSE_GAPS_DRAWN`),
+    other tilts, and another rigid transform (a turn of 1 rad to nearly π about a random axis,
+    a shift of ~100 m); drawn again until some pair turns by :data:`POSE_TURN_DRAWN` or more.
+    """
     ex = load_kitti("turns")
-    rng = np.random.default_rng(12)
-    C, c = so3.exp(MOVE_ROTATION), MOVE_TRANSLATION
+    rng = inputs.rng("real_sensors.pose_pairs", 12)
+    pairs, rotation, c = POSE_PAIRS, MOVE_ROTATION, MOVE_TRANSLATION
+    if inputs.drawing():
+        pairs, rotation, c = _drawn_pairs(rng, len(ex.truth.t))
+    C = so3.exp(rotation)
+    while True:
+        plain, moved = _tilted_pairs(ex, rng, pairs, C, c)
+        turn = max(so3.angle(R0.T @ R1) for _, _, R0, _, R1 in plain)
+        if not inputs.drawing() or turn >= POSE_TURN_DRAWN:
+            break
+    out = []
+    for case in plain + moved:
+        for arr in case[1:]:
+            arr.setflags(write=False)
+        out.append(case)
+    return tuple(out)
+
+
+def _drawn_pairs(rng: np.random.Generator, n_frames: int):
+    """Drawn (frame, gap) pairs and a rigid transform (rotation vector, translation)."""
+    pairs = []
+    for lo, hi in POSE_GAPS_DRAWN:
+        gap = int(rng.integers(lo, hi + 1))
+        pairs.append((int(rng.integers(0, n_frames - gap)), gap))
+    axis = rng.normal(size=3)
+    angle = rng.uniform(1.0, np.pi - 1e-3)
+    return tuple(pairs), angle * axis / np.linalg.norm(axis), rng.normal(size=3) * 100.0
+
+
+def _tilted_pairs(ex, rng, pairs, C, c):
+    """The truth pose pairs, each pose tilted by its own drawn rotation, and the same moved by (C, c)."""
     plain, moved = [], []
-    for k, n in POSE_PAIRS:
+    for k, n in pairs:
         tilt0, tilt1 = so3.exp(rng.normal(size=3) * 0.3), so3.exp(rng.normal(size=3) * 0.3)
         p0, R0 = ex.truth.position[k].copy(), ex.truth.rotation[k] @ tilt0
         p1, R1 = ex.truth.position[k + n].copy(), ex.truth.rotation[k + n] @ tilt1
@@ -416,12 +550,7 @@ def pose_pairs():
         plain.append((f"two KITTI poses {span}", p0, R0, p1, R1))
         moved.append((f"the same two poses {span}, the whole track moved by a rigid transform",
                       C @ p0 + c, C @ R0, C @ p1 + c, C @ R1))
-    out = []
-    for case in plain + moved:
-        for arr in case[1:]:
-            arr.setflags(write=False)
-        out.append(case)
-    return tuple(out)
+    return plain, moved
 
 
 def _ref_dp(p0, R0, p1, R1):
@@ -487,11 +616,16 @@ def check_relative_motion(relative_motion):
 def residual_cases():
     """(label, clone p, R, current p, R, Δp_m, ΔR_m): KITTI truth poses, measured increment simulated.
 
-    The measurement is the true increment with seeded noise: 3 cm in Δp and 0.02–0.05 rad in ΔR.
+    The measurement is the true increment with seeded noise: 3 cm in Δp and 0.02–0.05 rad in ΔR
+    (under a run seed: the pairs of :func:`pose_pairs`, other noise, its ΔR scales drawn from
+    0.02–0.05 rad).
     """
-    rng = np.random.default_rng(13)
+    rng = inputs.rng("real_sensors.residual", 13)
+    scales = (0.02, 0.05, 0.03, 0.04, 0.05)
+    if inputs.drawing():
+        scales = tuple(rng.uniform(0.02, 0.05, len(scales)))
     out = []
-    for (label, p0, R0, p1, R1), scale in zip(pose_pairs()[:len(POSE_PAIRS)], (0.02, 0.05, 0.03, 0.04, 0.05)):
+    for (label, p0, R0, p1, R1), scale in zip(pose_pairs()[:len(POSE_PAIRS)], scales):
         dp, dR = eskf_relative.relative_motion(p0, R0, p1, R1)
         dp_m, dR_m = dp + rng.normal(size=3) * 0.03, dR @ so3.exp(rng.normal(size=3) * scale)
         case = (p0, R0, p1, R1, dp_m, dR_m)
@@ -676,22 +810,45 @@ def drift_cases():
     """(label, position, rotation, true position, true rotation, first, last, length) per VO system.
 
     Real: the anchored ORB-SLAM2 / S-PTAM tracks and the ground truth of sequence 00, every
-    ``DRIFT_STRIDE``-th frame; the segments as the drift metric chooses them.
+    ``DRIFT_STRIDE``-th frame; the segments as the drift metric chooses them. Under a run
+    seed: another window of the same real tracks (:data:`DRIFT_WINDOW_DRAWN` frames from a
+    drawn start, a drawn stride), other segment lengths and step; only the segments whose
+    rotational error is at least :data:`DRIFT_LEAST_ANGLE` are kept, and the window is drawn
+    again until every length keeps :data:`DRIFT_LEAST_SEGMENTS` of them in both tracks.
     """
-    out = []
-    for system in DRIFT_SYSTEMS:
-        s = vo.setup("seq00", system)
+    setups = [vo.setup("seq00", system) for system in DRIFT_SYSTEMS]
+    if not inputs.drawing():
         frames = np.arange(0, DRIFT_FRAMES, DRIFT_STRIDE)
-        truth = s.excerpt.truth
-        p, R = s.vo.position[frames], s.vo.rotation[frames]
-        pt, Rt = truth.position[s.first + frames], truth.rotation[s.first + frames]
-        ref = drift(p, R, pt, Rt, DRIFT_LENGTHS, DRIFT_STEP)
-        case = (p, R, pt, Rt, ref.first.copy(), ref.last.copy(), ref.length.copy())
-        for arr in case:
-            arr.setflags(write=False)
-        out.append((f"{system} on sequence 00, {ref.n_segments} segments of "
-                    f"{', '.join(f'{v:g}' for v in DRIFT_LENGTHS)} m", *case))
-    return tuple(out)
+        return tuple(_drift_case(s, frames, DRIFT_LENGTHS, DRIFT_STEP, "") for s in setups)
+    g = inputs.rng("real_sensors.drift", 0)
+    n_frames = min(len(s.vo.t) for s in setups)
+    for _ in range(100):
+        size = int(g.integers(DRIFT_WINDOW_DRAWN[0], DRIFT_WINDOW_DRAWN[1] + 1))
+        start = int(g.integers(0, n_frames - size))
+        frames = np.arange(start, start + size, int(g.choice(DRIFT_STRIDES_DRAWN)))
+        lengths = tuple(float(np.round(g.uniform(lo, hi), 1)) for lo, hi in DRIFT_LENGTHS_DRAWN)
+        step = int(g.choice(DRIFT_STEPS_DRAWN))
+        out = tuple(_drift_case(s, frames, lengths, step, f" (frames {start}–{start + size - 1})",
+                                least_angle=DRIFT_LEAST_ANGLE) for s in setups)
+        if all(np.sum(case[7] == L) >= DRIFT_LEAST_SEGMENTS for case in out for L in lengths):
+            return out
+    raise RuntimeError("no drawn window of sequence 00 holds enough segments of every length")
+
+
+def _drift_case(s, frames, lengths, step, window: str, least_angle: float = 0.0):
+    """One drift case of the anchored VO setup ``s`` at ``frames`` (indices after its anchor)."""
+    truth = s.excerpt.truth
+    p, R = s.vo.position[frames], s.vo.rotation[frames]
+    pt, Rt = truth.position[s.first + frames], truth.rotation[s.first + frames]
+    ref = drift(p, R, pt, Rt, lengths, step)
+    first, last, length = ref.first, ref.last, ref.length
+    # an arccos of the trace, a correct way of taking the angle, loses precision at small angles
+    keep = _segment_motion_errors(p, R, pt, Rt, first, last)[1] >= least_angle
+    case = (p, R, pt, Rt, first[keep].copy(), last[keep].copy(), length[keep].copy())
+    for arr in case:
+        arr.setflags(write=False)
+    return (f"{s.system} on sequence 00{window}, {int(keep.sum())} segments of "
+            f"{', '.join(f'{v:g}' for v in lengths)} m", *case)
 
 
 def _rel(p, R, i, j):
@@ -820,16 +977,29 @@ def nis_cases():
     """(label, σ, innovations (N, m), S (N, m, m)) of the relative VO filter's first NIS_SECONDS.
 
     Real IMU and VO (ORB-SLAM2, S-PTAM); each run with σ = factor × (1 cm, 0.01°) per component,
-    cut into the blocks :data:`NIS_BLOCKS`.
+    cut into the blocks :data:`NIS_BLOCKS`. Under a run seed: a stretch of drawn length
+    (:data:`NIS_SECONDS_DRAWN`, from the same start: the filter starts at the anchor frame),
+    the factors drawn per system (:data:`NIS_FACTORS_DRAWN`) and other blocks of the same
+    sizes (a whole position and attitude block, one component of each, two of one unit).
     """
+    g = inputs.rng("real_sensors.nis", 0)
+    seconds, blocks = NIS_SECONDS, NIS_BLOCKS
+    if inputs.drawing():
+        seconds = float(g.uniform(*NIS_SECONDS_DRAWN))
+        # one position and one attitude component, and two components of one unit
+        pos, att, two = int(g.integers(0, 3)), int(g.integers(3, 6)), int(g.choice([0, 1, 3, 4]))
+        blocks = ((0, 3), (3, 6), (pos, pos + 1), (att, att + 1), (two, two + 2))
     out = []
     for system in DRIFT_SYSTEMS:
         s = vo.setup("seq00", system)
-        for factor in NIS_FACTORS:
+        factors = NIS_FACTORS
+        if inputs.drawing():
+            factors = tuple(float(inputs.log_uniform(g, *r)) for r in NIS_FACTORS_DRAWN)
+        for factor in factors:
             std = factor * _NIS_STD0
-            res = vo.run_relative_vo(s, tuple(std), t_end=float(s.t[0] + NIS_SECONDS))
+            res = vo.run_relative_vo(s, tuple(std), t_end=float(s.t[0] + seconds))
             y, S = np.array(res.innovation), np.array(res.S)
-            for a, b in NIS_BLOCKS:
+            for a, b in blocks:
                 yb, Sb = np.ascontiguousarray(y[:, a:b]), np.ascontiguousarray(S[:, a:b, a:b])
                 for arr in (yb, Sb):
                     arr.setflags(write=False)

@@ -377,9 +377,8 @@ EQUIVALENTS = [
           "scipy's inverse survival function"),
     _same("innovation_gate", GATE_R, "    return not value > threshold", "negated rejection test (np.bool_)"),
     _same("innovation_gate", GATE_R, "    return bool(nees(innovation, S) <= threshold)", "through the (correct) nees"),
-    _same("innovation_gate", GATE_R, "    from kalman_course.evaluation.consistency import gate as reference_gate\n"
-                                     "    return reference_gate(innovation, S, confidence)",
-          "the package's gate"),
+    # (calling the package's own gate passes the self-check but earns nothing in a graded run,
+    # which withholds it: tests/test_withheld.py)
     # ---- consistency_verdict
     _same("consistency_verdict", BOUNDS, VIA_INTERVAL, "bounds from the (correct) chi2_interval"),
     _same("consistency_verdict", MEAN, "    mean = np.sum(nis_values) / len(nis_values)\n", "mean written out"),
