@@ -150,7 +150,7 @@ CASES = [
     ("nominal_ekf.continuous_jacobian NaN q",
      lambda: nominal_ekf.continuous_jacobian([1.0, np.nan, 0, 0], *[np.zeros(3)] * 4),
      r"^q "),
-    ("nominal_ekf.noise_jacobian q length", lambda: nominal_ekf.noise_jacobian(np.ones(3)), r"^q "),
+    ("nominal_ekf.nominal_noise_jacobian q length", lambda: nominal_ekf.nominal_noise_jacobian(np.ones(3)), r"^q "),
     ("nominal_ekf.rotate_jacobian a length",
      lambda: nominal_ekf.rotate_jacobian([1.0, 0, 0, 0], np.zeros(2)),
      r"^a "),

@@ -140,10 +140,10 @@ def monte_carlo(n_runs: int = 20, seed: int = 0, duration: float = 20.0, *, proc
         res = eskf.run(sc.imu, x0, cfg, sc.gravity, lidar=lidar)
         k = np.searchsorted(sc.t, res.t - 1e-9)
         e = full_state_error(res, sc, k)
-        rows["nees"].append(metrics.nees(e, res.P))
+        rows["nees"].append(metrics.normalised_squared(e, res.P, "error", "P"))
         ep = e[:, _POSE_IDX]
-        rows["nees_pose"].append(metrics.nees(ep, res.P[:, _POSE_IDX][:, :, _POSE_IDX]))
-        rows["nis"].append(metrics.nis(np.array(res.innovation), np.array(res.S)))
+        rows["nees_pose"].append(metrics.normalised_squared(ep, res.P[:, _POSE_IDX][:, :, _POSE_IDX], "error", "P"))
+        rows["nis"].append(metrics.normalised_squared(np.array(res.innovation), np.array(res.S), "innovation", "S"))
         rows["err"].append(np.linalg.norm(e[:, 0:3], axis=1))
         rows["std"].append(np.sqrt(np.trace(res.P[:, 0:3, 0:3], axis1=1, axis2=2)))
         t_out = res.t
@@ -223,7 +223,7 @@ def sensitivity(excerpt, settings, config="kitti_lidar", lidar=None) -> list[Sen
     for label, qf, rf in settings:
         res = eskf.run(excerpt.imu, s0, scaled_config(config, qf, rf), excerpt.gravity, lidar=lidar, start=k0)
         m = evaluate(res.t, res.position, res.rotation, excerpt.truth, res.P)
-        nis = metrics.nis(np.array(res.innovation), np.array(res.S))
+        nis = metrics.normalised_squared(np.array(res.innovation), np.array(res.S), "innovation", "S")
         rows.append(SensitivityRow(label, float(qf), float(rf), m["ape_position"], m["ape_attitude_deg"],
                                    m["nees_pose"], metrics.share_inside(m["nees"], lo, hi),
                                    float(np.mean(nis)), verdict(nis, 6)))
@@ -359,7 +359,7 @@ def run_gated(excerpt, lidar=None, config="kitti_lidar", confidence: float | Non
             innovation[rej, 0:3] = res.position[r] - p_obs[rej]
             innovation[rej, 3:6] = so3.log(np.swapaxes(R_obs[rej], -1, -2) @ res.rotation[r])
             S[rej] = res.P[r][:, _POSE_IDX][:, :, _POSE_IDX] + R_noise
-        nis = metrics.nis(innovation, S)
+        nis = metrics.normalised_squared(innovation, S, "innovation", "S")
         wrong = (nis <= threshold) != accepted
         if not np.any(wrong):
             return GatedRun(res, times, index, accepted, innovation, S, nis, float(threshold), reruns)

@@ -33,11 +33,9 @@ import functools
 import numpy as np
 
 from kalman_course.filters import bayes
+from kalman_course.chapters.corridor import CORRIDOR, corridor_scenario, scenario as _scenario
 from kalman_course.checks import cases as inputs  # `cases` names the lists of cases below
 from kalman_course.checks.harness import CheckFailed, as_array, call, check, expect_close, expect_shape
-
-#: The corridor of chapter 01: 1 where a cell has a door, 0 where it is wall.
-CORRIDOR = np.array([1, 1, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 1, 0, 0, 0, 0, 0, 0])
 
 #: Another 20-cell map with the doors elsewhere: a run that reads the global ``CORRIDOR``
 #: instead of its ``world`` argument gives other beliefs on it.
@@ -394,24 +392,6 @@ def _variant_filter(belief0, transition, world, measurements, p_correct, *, rest
         if not store_prior:
             beliefs.append(belief)
     return np.array(beliefs)
-
-
-def _scenario(world, seed: int, steps: int, p_correct: float, step_probs: dict):
-    """A robot moving around a circular ``world``, with its true cells and noisy door readings."""
-    rng = np.random.default_rng(seed)
-    n = len(world)
-    offsets, probs = zip(*step_probs.items())
-    cells = [int(rng.integers(n))]
-    for _ in range(steps - 1):
-        cells.append((cells[-1] + int(rng.choice(offsets, p=probs))) % n)
-    cells = np.array(cells)
-    z = np.where(rng.random(steps) < p_correct, world[cells], 1 - world[cells])
-    return cells, z, bayes.circular_motion_model(n, step_probs), p_correct
-
-
-def corridor_scenario(seed: int = 7, steps: int = 12, p_correct: float = 0.85):
-    """A robot moving around the corridor, with its true cells and noisy door readings."""
-    return _scenario(CORRIDOR, seed, steps, p_correct, {0: 0.1, 1: 0.8, 2: 0.1})
 
 
 @functools.cache

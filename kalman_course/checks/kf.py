@@ -44,6 +44,7 @@ from kalman_course.checks import cases as inputs  # `cases` names the lists of c
 from kalman_course.checks.harness import (CheckFailed, as_array, call, check, expect_close,
                                           expect_shape, expect_symmetric, type_name)
 from kalman_course.core import linalg
+from kalman_course.chapters.gnss import truth_at
 from kalman_course.data import load_kitti
 from kalman_course.evaluation.metrics import rmse
 
@@ -787,12 +788,6 @@ def _reject_known_run_mistakes(x_hat, P_hat, y, sigma_gnss, mistakes, where: str
     for (x_wrong, P_wrong), why in mistakes:
         if _same_run(x_hat, P_hat, x_wrong, P_wrong):
             raise CheckFailed(f"the run on {where} is wrong. Hint: {why}")
-
-
-def truth_at(name: str, t):
-    """Ground-truth positions of excerpt ``name`` interpolated at times ``t``, shape (N, 3)."""
-    truth = load_kitti(name).truth
-    return np.column_stack([np.interp(t, truth.t, truth.position[:, i]) for i in range(3)])
 
 
 @check(uses={"cv_matrices": "cv_process_noise", "kf_predict": "kf_predict", "kf_gain": "kf_gain",

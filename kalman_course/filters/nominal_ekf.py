@@ -38,7 +38,7 @@ from kalman_course.core.validation import as_scalar, as_vector
 # the ESKF's argument checks, so that both filters accept and reject the same inputs
 from kalman_course.filters.eskf import _as_config, _as_gravity, _as_nominal, _as_observations, _imu_samples
 
-__all__ = ["rotate_jacobian", "quat_xi", "quat_omega", "continuous_jacobian", "noise_jacobian", "propagate",
+__all__ = ["rotate_jacobian", "quat_xi", "quat_omega", "continuous_jacobian", "nominal_noise_jacobian", "propagate",
            "NominalEkfResult", "run_nominal_ekf", "REGULARISER"]
 
 #: Added to the quaternion block of the observation covariance so that S stays invertible.
@@ -98,7 +98,7 @@ def continuous_jacobian(q, f, w, b_a, b_w) -> np.ndarray:
     return A
 
 
-def noise_jacobian(q) -> np.ndarray:
+def nominal_noise_jacobian(q) -> np.ndarray:
     """B (16, 12) at q (4,): columns n_a, n_ω, n_ba, n_bω."""
     q = _as_quaternion(q)
     B = np.zeros((16, 12))
@@ -151,14 +151,19 @@ class NominalEkfResult:
 
 
 def run_nominal_ekf(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lidar,
-                    start: int = 0, t_end: float | None = None) -> NominalEkfResult:
+                    start: int = 0, t_end: float | None = None, jacobian=None,
+                    covariance_update=None) -> NominalEkfResult:
     """Run the nominal-state EKF on IMU samples with lidar pose updates.
 
     Same inputs and noise settings as :func:`kalman_course.filters.eskf.run` (the attitude prior and
     noise, given for δθ in the configuration, are mapped to the quaternion through Ξ(q));
     an observation between two IMU samples is handled the same way (interpolated reading,
-    exact propagation to its time). Biases follow random walks.
+    exact propagation to its time). Biases follow random walks. ``jacobian`` (q, f, w, b_a, b_w)
+    -> A (16, 16) is the model's Jacobian (default :func:`continuous_jacobian`) and
+    ``covariance_update`` (P, K, G, R) -> P̂ the update of P (default the Joseph form):
+    chapter 08's exercise runs the filter on the learner's own.
     """
+    jacobian = continuous_jacobian if jacobian is None else jacobian
     cfg = _as_config(config)
     initial = _as_nominal(initial, "initial")
     g = _as_gravity(gravity)
@@ -182,9 +187,9 @@ def run_nominal_ekf(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.80
     dens_cols = np.repeat(dens, 3)             # B Q Bᵀ = T · (B_t diag(σ²) B_tᵀ) with the T / √T scaling
 
     def predict(x, P, f0, w0, f1, w1, dt):
-        A = continuous_jacobian(x[6:10], f0, 0.5 * (w0 + w1), x[10:13], x[13:16])
+        A = jacobian(x[6:10], f0, 0.5 * (w0 + w1), x[10:13], x[13:16])
         F = I16 + A * dt
-        Bs = noise_jacobian(x[6:10]) * dens_cols
+        Bs = nominal_noise_jacobian(x[6:10]) * dens_cols
         return propagate(x, f0, w0, f1, w1, dt, g), symmetrise(F @ P @ F.T + dt * (Bs @ Bs.T))
 
     t, f, w = t_imu[0], f_imu[0], w_imu[0]
@@ -211,7 +216,7 @@ def run_nominal_ekf(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.80
             GP = G @ P
             K = gain(GP, innovation_covariance(GP, G, Rn))
             x = x + K @ (y - G @ x)
-            P = joseph_update(P, K, G, Rn, I16)
+            P = joseph_update(P, K, G, Rn, I16) if covariance_update is None else covariance_update(P, K, G, Rn)
             # back onto the unit sphere, and the covariance with it
             nq = np.linalg.norm(x[6:10])
             x[6:10] /= nq

@@ -105,9 +105,10 @@ def _sources() -> dict[str, Path]:
     return found
 
 
-def functions_to_write(release) -> set[str]:
-    """The functions an exercise asks for: those its ``# fix this`` cells define."""
-    names = set()
+def functions_to_write(release) -> dict[str, int]:
+    """The functions an exercise asks for (those its ``# fix this`` cells define): name → how
+    many positional arguments a call of it passes (its parameters without a default)."""
+    functions = {}
     for cell in release.cells:
         if cell.cell_type != "code" or FIX_THIS not in cell.source:
             continue
@@ -117,8 +118,17 @@ def functions_to_write(release) -> set[str]:
             from IPython.core.inputtransformer2 import TransformerManager
 
             tree = ast.parse(TransformerManager().transform_cell(cell.source))
-        names |= {node.name for node in ast.walk(tree) if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))}
-    return names
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                positional = [*node.args.posonlyargs, *node.args.args]
+                functions[node.name] = len(positional) - len(node.args.defaults)
+    return functions
+
+
+def _accepts(node: ast.FunctionDef, count: int) -> bool:
+    """Whether a call with ``count`` positional arguments fits the function ``node``."""
+    positional = [*node.args.posonlyargs, *node.args.args]
+    return len(positional) - len(node.args.defaults) <= count and (node.args.vararg or count <= len(positional))
 
 
 def withheld_functions(learner_functions, check_names) -> dict[str, str]:
@@ -126,17 +136,20 @@ def withheld_functions(learner_functions, check_names) -> dict[str, str]:
 
     Parameters
     ----------
-    learner_functions : iterable of str
-        The functions the exercise asks for (defined in its ``# fix this`` cells).
+    learner_functions : dict of str to int, or iterable of str
+        The functions the exercise asks for (:func:`functions_to_write`). A package function
+        of the same name is withheld when a call of the exercise's fits it (a namesake that
+        takes other arguments is another function); with names only, whatever its arguments.
     check_names : iterable of str
         The checks of its grader cells.
     """
-    learner_functions = set(learner_functions)
+    arity = learner_functions if isinstance(learner_functions, dict) else dict.fromkeys(learner_functions)
     out = {}
     for module, path in _sources().items():
         tree = ast.parse(path.read_text(encoding="utf-8"))
         for node in tree.body:
-            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.name in learner_functions:
+            if (isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.name in arity
+                    and (arity[node.name] is None or _accepts(node, arity[node.name]))):
                 out[f"{module}.{node.name}"] = node.name
     for check in check_names:
         for dotted in TWINS.get(check, ()):
