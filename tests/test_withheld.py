@@ -193,11 +193,6 @@ def test_an_outdated_twins_table_is_an_error(tmp_path):
 # every twin is known: a package function that passes a check is withheld for its chapter
 # ---------------------------------------------------------------------------------------
 
-#: Checks whose cases take seconds per candidate: their twins are looked for by hand.
-_TOO_SLOW_TO_SCAN = {"eskf_run", "chi2_interval", "drift_segments", "monte_carlo_nees", "nis_rescaled_std",
-                     "gnss_kf_run", "gnss_kf_gaps", "histogram_filter", "mechanisation_run"}
-
-
 def _package_functions():
     skip = ("kalman_course.checks", "kalman_course.tooling", "kalman_course.data.build")
     for info in pkgutil.walk_packages(kalman_course.__path__, "kalman_course."):
@@ -278,8 +273,6 @@ def test_every_package_function_that_passes_a_check_is_withheld_for_its_chapter(
         names = list(sol.grader_call)
         known = withheld.withheld_functions(withheld.functions_to_write(release), names)
         for check_name in names:
-            if check_name in _TOO_SLOW_TO_SCAN:
-                continue
             check = getattr(checks, check_name)
             call = sol.grader_call[check_name]
             learner = sol.namespace[call[call.index("(") + 1:call.rindex(")")]]
