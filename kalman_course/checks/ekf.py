@@ -813,8 +813,8 @@ def _ekf_mistakes(x_check, P_check, y, g, G, R, residual):
                   "times the residual of y, and shrink P̌ (lecture 05 §2)"),
         (x_check + K @ residual(y, Gm @ x_check), linear),
         (x_check + K @ (y - Gm @ x_check), linear),
-        (x_check + K @ (y - g(x_check)), "use the residual function you are given, so that bearings are "
-                                         "wrapped"),
+        (x_check + K @ (y - g(x_check)), "use the residual function you are given, so that angles (bearings, "
+                                         "headings) are wrapped"),
         (x_check - K @ r, "sign: x̂ = x̌ + K (y − g(x̌)), the residual is measured minus predicted"),
         (x_check - K @ (y - g(x_check)), "sign: x̂ = x̌ + K (y − g(x̌)), the residual is measured minus "
                                          "predicted"),
@@ -932,8 +932,8 @@ def _mean_step_mistakes(x_check, P_check, x_op, y, g, G, R, residual):
                                       "back the EKF)"),
         (x_check + K @ (residual(y, g(x_check)) - Gm @ d), "the residual is taken at the linearisation point: "
                                                             "r = y − g(x_op), not y − g(x̌)"),
-        (x_check + K @ ((y - g(x_op)) - Gm @ d), "use the residual function you are given, so that bearings "
-                                                 "are wrapped"),
+        (x_check + K @ ((y - g(x_op)) - Gm @ d), "use the residual function you are given, so that angles "
+                                                 "(bearings, headings) are wrapped"),
         (x_check + K @ (-r - Gm @ d), "the residual is measured minus predicted: r = y − g(x_op)"),
         (x_check + _gain_at(P_check, Gm, 0 * R) @ (r - Gm @ d),
          "K_i = P̌ G_iᵀ (G_i P̌ G_iᵀ + R)⁻¹: the measurement noise R is missing"),
