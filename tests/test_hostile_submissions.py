@@ -102,7 +102,10 @@ CASES = {
         grading.TAMPERED_RESTORED, 4),  # the wrong likelihood also sinks the recursion check
     "grader_deleted": (_delete("grader-histogram_update"), grading.TAMPERED_RESTORED, FULL),
     "cell_id_changed": (_rename("grader-histogram_predict", "my-cell"), grading.TAMPERED_RESTORED, FULL),
-    "imports_reference": (_replace("update", "from kalman_course.filters.bayes import histogram_update"), grading.GRADED, FULL),
+    # the reference is withheld while grading: histogram_update earns nothing, and the filter
+    # check that uses it blames it
+    "imports_reference": (_replace("update", "from kalman_course.filters.bayes import histogram_update"), grading.GRADED,
+                          FULL - 4),
     # the patch changes only the kernel's checks (its grader cell prints "passed" there); the
     # grade comes from the grading process, where the wrong (unnormalised) update fails its
     # check and the filter check with it; the review flags the patch as well
@@ -180,7 +183,9 @@ def test_shortcuts_are_flagged_for_review_and_honest_work_is_not(graded):
     flagged = {name for name, r in results.items() if r["flags"]}
     assert flagged == {"imports_reference", "patches_checks"}
     assert results["imports_reference"]["flags"] == [
-        "cell update: imports `histogram_update` from `kalman_course.filters.bayes` instead of writing it"]
+        "cell update: imports `histogram_update` from `kalman_course.filters.bayes` instead of writing it",
+        "cell update: calls kalman_course.filters.bayes.histogram_update, the course's own version of a function "
+        "the exercise asks for (withheld while grading)"]
     assert results["patches_checks"]["flags"] == [
         "cell learner-extra: assigns to `checks.histogram_update`, part of the grading code"]
     assert "Flagged for review" in (out / "fb" / "patches_checks.md").read_text()

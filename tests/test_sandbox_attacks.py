@@ -48,6 +48,7 @@ import nbformat
 import pytest
 from nbformat.v4 import new_code_cell, new_notebook
 
+from kalman_course.tooling.cells import BEGIN_RE, END_RE, STUB_RE
 from kalman_course.tooling import cli, grading
 from kalman_course.tooling.gradebook import KEY_VARIABLE
 
@@ -155,7 +156,9 @@ ATTACKS = [
             writes = []
             for rel in ("filters/bayes.py", "tooling/grading.py"):
                 module = os.path.join(package, rel)
-                writes.append((importlib.util.cache_from_source(module), forged_pyc(module)))
+                # (a graded kernel's package has no tooling/: the write is refused all the same)
+                data = forged_pyc(module) if os.path.exists(module) else b"forged"
+                writes.append((importlib.util.cache_from_source(module), data))
             writes.append((os.path.join(site.getsitepackages()[0], f"zz_{mark}.pth"),
                            f"import sys; sys.modules.setdefault({mark!r}, sys)\\n".encode()))
             repo = os.path.dirname(package)
@@ -550,10 +553,19 @@ def _class(targets: dict) -> dict[str, tuple[str, bytes]]:
         _, nb = notebooks.setdefault(attack.submission, (attack.notebook, _exercise(attack.notebook)))
         _apply(nb, attack, targets)
     out = {learner: (name, nbformat.writes(nb).encode()) for learner, (name, nb) in notebooks.items()}
-    # the honest classmates hand in the solutions themselves
-    out[CLASSMATE_01] = (CH01, (ROOT / "solutions" / CH01).read_bytes())
-    out[CLASSMATE_03] = (CH03, (ROOT / "solutions" / CH03).read_bytes())
+    # the honest classmates hand in the solutions' code (without the region markers, which
+    # flag a copy of solutions/)
+    out[CLASSMATE_01] = (CH01, _solved(CH01))
+    out[CLASSMATE_03] = (CH03, _solved(CH03))
     return out
+
+
+def _solved(notebook: str) -> bytes:
+    nb = nbformat.read(ROOT / "solutions" / notebook, as_version=4)
+    for cell in nb.cells:
+        cell.source = "\n".join(line for line in cell.source.splitlines()
+                                if not any(r.match(line) for r in (BEGIN_RE, STUB_RE, END_RE)))
+    return nbformat.writes(nb).encode()
 
 
 # ---------------------------------------------------------------------------------------

@@ -210,6 +210,8 @@ SPECS = [
      {"error": ("vector", (2,)), "P": ("pd", (2,))}, {"error": "P"}),
     (metrics.nis, dict(innovation=np.ones(2), S=I2),
      {"innovation": ("vector", (2,)), "S": ("pd", (2,))}, {"innovation": "S"}),
+    (metrics.normalised_squared, dict(vec=np.ones(2), cov=I2, vec_name="vec", cov_name="cov"),
+     {"vec": ("vector", (2,)), "cov": ("pd", (2,))}, {"vec": "cov"}),
     (metrics.chi2_cdf, dict(x=1.0, dof=2), {"x": ("real", ()), "dof": ("scalar", ())}, {}),
     (metrics.chi2_ppf, dict(p=0.5, dof=2), {"p": ("real", ()), "dof": ("scalar", ())}, {}),
     (metrics.chi2_bounds, dict(dof=2, n_runs=3, confidence=0.95),
@@ -233,7 +235,7 @@ ALLOWED = {
     ("run_kf", "ys", "wrong rows"), ("apply_alignment", "points", "wrong rows"),
     ("run_kf", "ys", "NaN"),           # a NaN row of a 1-component series is a missing measurement
     ("gaussian_pdf", "x", "row (1, n)"), ("gaussian_logpdf", "x", "row (1, n)"),
-    ("nees", "error", "row (1, n)"), ("nis", "innovation", "row (1, n)"),
+    ("nees", "error", "row (1, n)"), ("nis", "innovation", "row (1, n)"), ("normalised_squared", "vec", "row (1, n)"),
     # any length is right where the vector itself fixes the dimension
     ("numerical_jacobian", "x", "wrong length"), ("normalise", "belief", "wrong length"),
     # dof may be an array, broadcast against x or p

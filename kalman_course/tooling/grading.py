@@ -430,15 +430,23 @@ def _withheld_calls(session, cells) -> list[tuple[str | None, str, str]]:
     """
     if not callable(getattr(session, "withheld_calls", None)):
         return []
-    by_file = {_cell_file(cell.source): cell.get("id") for cell in cells}
+    by_file = {_cell_file(cell.source): cell for cell in cells}
     blamed = []
     for filename, line, dotted, exercise_function in session.withheld_calls():
-        cid = by_file.get(os.path.basename(str(filename)))
-        if cid is None:
-            cid = next((cell.get("id") for cell in reversed(cells)
-                        if str(exercise_function) in _top_level_bindings(cell.source)), None)
-        blamed.append((cid, f"{filename}:{line}", dotted))
+        cell = by_file.get(os.path.basename(str(filename)))
+        if cell is None or _calls_by_name(cell.source, line, exercise_function):
+            # the grader, or the learner's other code, called the exercise function by its name,
+            # which an alias bound to the reference: blame the binding
+            binding = next((c for c in reversed(cells) if exercise_function in _top_level_bindings(c.source)), None)
+            cell = binding if binding is not None else cell
+        blamed.append((None if cell is None else cell.get("id"), f"{filename}:{line}", dotted))
     return blamed
+
+
+def _calls_by_name(source: str, line: int, name: str) -> bool:
+    """Whether line ``line`` (from 1) of a cell calls ``name`` as a plain name, ``name(...)``."""
+    lines = source.splitlines()
+    return 0 < line <= len(lines) and re.search(rf"(?<![\w.]){re.escape(name)}\s*\(", lines[line - 1]) is not None
 
 
 def _top_level_bindings(source: str) -> set[str]:
@@ -617,10 +625,12 @@ def grade_submission(submission, release: dict, result: NotebookResult, *, timeo
     result.learner_errors = [f"{labels.get(cid, f'cell {cid}')}: {error}" for cid, error in errors
                              if cid not in graders]
     calls = getattr(session, "reference_calls", None)
-    for cid, where, dotted in dict.fromkeys(calls if isinstance(calls, list) else ()):
+    withheld_flags = []
+    for cid, where, dotted in calls if isinstance(calls, list) else ():
         place = labels.get(cid, f"cell {cid}") if cid is not None else f"code outside the notebook's cells ({where})"
-        result.flags.append(f"{place}: calls {dotted}, the course's own version of a function the exercise "
-                            "asks for (withheld while grading)")
+        withheld_flags.append(f"{place}: calls {dotted}, the course's own version of a function the exercise "
+                              "asks for (withheld while grading)")
+    result.flags += dict.fromkeys(withheld_flags)  # once per cell and function, however many calls
     for cell in ref.cells:
         info = grader_info(cell)
         if not info:

@@ -43,7 +43,10 @@ _NOT_FOR_GRADING = ("kalman_course.data.build", "kalman_course.tooling.bench", "
 _LAZY = ("csv", "hmac", "concurrent.futures", "multiprocessing.connection", "multiprocessing.util",
          "jupyter_client.manager", "jupyter_client.blocking.client", "jupyter_client.provisioning.local_provisioner",
          "jupyter_client.launcher", "jupyter_client.channels", "jupyter_client.session", "zmq",
-         "zmq.utils.garbage", "zmq.utils.monitor", "matplotlib", "numpy.random", "IPython.core.inputtransformer2")
+         "zmq.utils.garbage", "zmq.utils.monitor", "matplotlib", "numpy.random", "IPython.core.inputtransformer2",
+         # the cell files of a kernel (who called a withheld reference); what SymPy loads for the
+         # drawn cases' models (sympy.physics.units, sympy.physics.matrices)
+         "ipykernel.compiler", "sympy.physics.units", "sympy.physics.matrices")
 
 
 def preload(check_names=None) -> list[str]:

@@ -25,17 +25,17 @@ unchanged; the tests grade every solution on its guarded build.
 from __future__ import annotations
 
 import ast
-import compileall
+import py_compile
 import shutil
+import sys
 from pathlib import Path
 
-import kalman_course
 from kalman_course.tooling.cells import FIX_THIS
 
 __all__ = ["TWINS", "functions_to_write", "withheld_functions", "build_guarded"]
 
 #: The package's own folder.
-PACKAGE = Path(kalman_course.__file__).resolve().parent
+PACKAGE = Path(__file__).resolve().parent.parent
 
 #: Folders of the package not copied into a guarded build (the grading machinery).
 _LEFT_OUT = ("tooling",)
@@ -230,5 +230,13 @@ def build_guarded(destination: str | Path, withheld: dict[str, str], chapter: st
     (checks / "__init__.py").write_text(_CHECKS_INIT, encoding="utf-8")
     for name in _AGENT_MODULES:
         shutil.copy2(PACKAGE / "checks" / name, checks / name)
-    compileall.compile_dir(target, quiet=1, workers=1)
+    _compile(target)
     return target
+
+
+def _compile(target: Path) -> None:
+    """Bytecode of every module of the build, beside it (a kernel cannot write any there), at
+    paths given explicitly: the sealed grading process's ``pycache_prefix`` must stay empty."""
+    for source in target.rglob("*.py"):
+        cfile = source.parent / "__pycache__" / f"{source.stem}.{sys.implementation.cache_tag}.pyc"
+        py_compile.compile(str(source), cfile=str(cfile), doraise=True)
