@@ -1,4 +1,5 @@
-"""Shared fixtures: the repository's folders and a non-interactive matplotlib backend."""
+"""Shared fixtures: the repository's folders, a non-interactive matplotlib backend, and hints
+at tier 1 without escalation (a test that runs a check twice must see the same message)."""
 
 import textwrap
 from pathlib import Path
@@ -7,6 +8,10 @@ import matplotlib
 import pytest
 
 matplotlib.use("Agg")
+
+from kalman_course.checks import hints  # noqa: E402
+
+hints.set_tier(1, escalate=False)
 
 ROOT = Path(__file__).resolve().parent.parent
 

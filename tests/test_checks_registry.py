@@ -104,8 +104,9 @@ def test_a_failing_used_function_is_named_instead_of_the_function_under_test():
             raise checks.CheckFailed("downstream(1) should be 1")
 
     try:
-        with pytest.raises(checks.CheckFailed, match=r"^registry_downstream: your upstream fails its own "
-                                                     r"check.*fix upstream first \(registry_upstream: upstream"):
+        with pytest.raises(checks.CheckFailed, match=r"^registry_downstream: this function calls your upstream, "
+                                                     r"which does not pass its own check yet: upstream\(1\) "
+                                                     r"should be 1\. Hint: fix upstream first"):
             check_registry_downstream(namespace["downstream"])
         exec("def upstream(x):\n    return x\n", namespace)          # fixed upstream: no redirection
         check_registry_downstream(namespace["downstream"])

@@ -221,7 +221,7 @@ def test_a_failing_review_never_costs_the_grade(tmp_path, monkeypatch):
             pass
 
     monkeypatch.setattr(grading, "_fresh_session", lambda timeout, sandbox, package: NoKernel())
-    monkeypatch.setattr(grading, "run_graded", lambda nb, timeout, compare, session: (grading.GRADED, passed, [], ""))
+    monkeypatch.setattr(grading, "run_graded", lambda nb, timeout, compare, session, labels: (grading.GRADED, passed, [], ""))
     path = tmp_path / "07_x.ipynb"
     nbformat.write(nbformat.from_dict(_release()), path)
     result = grading.grade_notebook(path, {"07": _release()})
@@ -245,3 +245,23 @@ def test_a_dead_kernel_is_noticed_within_two_seconds(tmp_path):
     noticed = time.time() - float(stamp.read_text())
     assert result.status == grading.KERNEL_DIED and result.points == 0
     assert noticed < 2.0, f"the dead kernel was noticed after {noticed:.1f} s"
+
+
+def test_a_function_that_is_not_defined_is_told_as_such():
+    from kalman_course.checks.remote import LocalSession
+
+    cells = [new_code_cell("import numpy as np"), new_code_cell("def f(x):\n    return x +"),
+             new_code_cell("def g(x):\n    return x"), new_code_cell("del g")]
+    for cid, cell in zip(["imports", "code", "other", "gone"], cells):
+        cell["id"] = cid
+    session = LocalSession({"np": None})
+    labels = {"code": "cell code", "other": "cell other"}
+    errors = [("code", "SyntaxError: invalid syntax")]
+    message = grading._undefined(session, ["f"], cells, errors, labels)
+    assert message.startswith("f is not defined: its cell, cell code, raised SyntaxError: invalid syntax. Hint: ")
+    assert "shape" not in message
+    assert grading._undefined(session, ["g"], cells, errors, labels).startswith(
+        "g is not defined when this grader cell runs, although cell other defines it")
+    assert "no cell of the notebook defines it" in grading._undefined(session, ["h"], cells, errors, labels)
+    assert grading._undefined(LocalSession({"f": len}), ["f"], cells, errors, labels) == ""
+

@@ -44,6 +44,7 @@ def test_mutant_fails_its_check_with_a_hint_that_names_it(notebook, mutant, seed
     run_seed(seed)
     outcome = solution(notebook).grade(mutant)
     assert not outcome.passed, f"{mutant.check} passes a mutant: {mutant.mistake}"
+    assert not {"\x02", "\x03"} & set(outcome.message), f"a hint's tier marks reached the learner: {outcome.message!r}"
     assert mutant.keyword.lower() in outcome.message.lower(), (
         f"{mutant.check} rejects '{mutant.mistake}' but its message does not name it "
         f"(keyword {mutant.keyword!r}): {outcome.message}")

@@ -9,6 +9,7 @@ below registers it, and this package exposes every registered check as ``checks.
 """
 
 from kalman_course.checks.harness import SUCCESS, CheckFailed, registered
+from kalman_course.checks.hints import more_hints
 
 # Importing a chapter's module runs its @check decorators, which register its checks.
 from kalman_course.checks import (  # noqa: F401  (imported for registration)
@@ -35,4 +36,4 @@ def _expose_registered_checks() -> list[str]:
     return list(registered())
 
 
-__all__ = ["CheckFailed", "SUCCESS", "registered", *_expose_registered_checks()]
+__all__ = ["CheckFailed", "SUCCESS", "registered", "more_hints", *_expose_registered_checks()]

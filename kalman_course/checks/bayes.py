@@ -7,6 +7,11 @@ and names the mistake when the learner's result matches one of them. The referen
 and the wrong values are computed once per process (``functools.cache``): a check's run
 time is the learner's calls and the comparisons.
 
+Which listed mistake explains a learner's results is asked of :func:`harness.known_mistake`:
+the one that reproduces every case, else the first that reproduces the first wrong case. Hints
+come in tiers (:mod:`kalman_course.checks.hints`): the concept, the mistake and the lecture
+section first, the formula at tier 2.
+
 Tolerances: every quantity here is a product, sum or quotient of a few dozen numbers of
 order 1, so any correct formulation (a loop, ``einsum``, the log domain, the evidence as a
 dot product) agrees with the reference to ~1e-15; the default ``rtol=1e-7, atol=1e-9`` of
@@ -35,7 +40,9 @@ import numpy as np
 from kalman_course.filters import bayes
 from kalman_course.chapters.corridor import CORRIDOR, corridor_scenario, scenario as _scenario
 from kalman_course.checks import cases as inputs  # `cases` names the lists of cases below
-from kalman_course.checks.harness import CheckFailed, as_array, call, check, expect_close, expect_shape
+from kalman_course.checks import hints
+from kalman_course.checks.harness import (CheckFailed, as_array, call, check, expect_close, expect_shape,
+                                          known_mistake)
 
 #: Another 20-cell map with the doors elsewhere: a run that reads the global ``CORRIDOR``
 #: instead of its ``world`` argument gives other beliefs on it.
@@ -67,18 +74,73 @@ def _same(a, b) -> bool:
     return a.shape == b.shape and np.array_equal(a, b)
 
 
-def _expect(value, expected, what: str, mistakes, hint: str, **tolerances) -> np.ndarray:
-    """:func:`expect_close`, with the wrong values built only when the result is not right.
-
-    ``mistakes`` is a callable returning the ``(wrong_value, hint)`` list: most learners'
-    results are right, and building every wrong value on every call would double the
-    check's run time.
+def _results(fn, cases, arguments) -> list:
+    """The learner's result on every case, ``arguments(case)`` being the call's arguments; a
+    call that raised leaves its :class:`CheckFailed` in its place, raised when the check
+    reaches that case (so the messages come in the cases' order, as with one call at a time).
     """
-    arr = expect_shape(value, np.shape(expected), what)
+    out = []
+    for case in cases:
+        try:
+            out.append(call(fn, *arguments(case)))
+        except CheckFailed as exc:
+            out.append(exc)
+    return out
+
+
+def _result(got):
+    """A learner's result from :func:`_results`, raising the failure stored in its place."""
+    if isinstance(got, CheckFailed):
+        raise got
+    return got
+
+
+def _agrees(got, wrong, rtol: float = 1e-7, atol: float = 1e-9) -> bool:
+    """Whether a learner's result is a known mistake's value (False for a value that could
+    not be computed, a result that is not numeric, or one of another shape)."""
+    if wrong is None or isinstance(got, CheckFailed):
+        return False
+    try:
+        got, wrong = np.asarray(got, dtype=float), np.asarray(wrong, dtype=float)
+    except (TypeError, ValueError):
+        return False
+    return got.shape == wrong.shape and bool(np.allclose(got, wrong, rtol=rtol, atol=atol))
+
+
+def _expect(got: list, k: int, expected, what: str, cases, mistakes, hint: str, **tolerances) -> np.ndarray:
+    """Fail unless the learner's result on case ``k`` (``got[k]``) matches ``expected``.
+
+    When it does not, the hint is the one of the listed mistake that reproduces the learner's
+    results on every case, else of the first that reproduces case ``k``
+    (:func:`harness.known_mistake`); the wrong values are built only then (most learners'
+    results are right, and building every wrong value on every call would double the
+    check's run time).
+
+    Parameters
+    ----------
+    got : list
+        The learner's results on every case of the check (:func:`_results`).
+    k : int
+        The case compared now.
+    expected : array_like
+        The reference on case ``k``.
+    what : str
+        The quantity, as the message names it.
+    cases : sequence
+        The check's cases, as the mistakes' formulas take them.
+    mistakes : iterable of (callable, str)
+        ``(formula, hint)``: ``formula(case)`` is the mistake's value on a case.
+    hint : str
+        The hint when no listed mistake explains the result.
+    """
     rtol, atol = tolerances.get("rtol", 1e-7), tolerances.get("atol", 1e-9)
+    arr = expect_shape(_result(got[k]), np.shape(expected), what)
     if np.allclose(arr, expected, rtol=rtol, atol=atol):
         return arr
-    return expect_close(arr, expected, what, mistakes=mistakes(), hint=hint, rtol=rtol, atol=atol)
+    why = known_mistake(got, cases, mistakes, lambda g, w, _: _agrees(g, w, rtol, atol), case=k)
+    if why is not None:
+        raise CheckFailed(f"{what} is wrong. Hint: {why}")
+    return expect_close(arr, expected, what, hint=hint, rtol=rtol, atol=atol)
 
 
 # ---------------------------------------------------------------------------------------
@@ -166,56 +228,64 @@ def _only_zeros_and_ones(value) -> bool:
         return False
 
 
+#: The likelihood's known mistakes: (formula of a case (world, z, p, want), hint).
+_LIKELIHOOD_MISTAKES = (
+    (lambda c: door_likelihood(c[0], 1 - c[1], c[2]),
+     "the values are swapped: the sensor is right with probability p_correct, so the likely cells "
+     "are those whose map shows what was sensed (lecture 01 §5): "
+     + hints.formula("p(z | x = i) is p_correct where world[i] == z and 1 - p_correct elsewhere")),
+    (lambda c: np.where(c[0] == c[1], 1.0, 0.0),
+     "a real sensor errs: use p_correct and 1 - p_correct, not 1 and 0 (lecture 01 §5)"),
+    (lambda c: np.where(c[0] == c[1], c[2], 0.0),
+     "a cell whose map disagrees with z is not impossible: the sensor errs with "
+     "probability 1 - p_correct, so give it 1 - p_correct, not 0 (lecture 01 §5)"),
+    (lambda c: c[3] / c[3].sum(),
+     "do not normalise the likelihood: p(z | x = i) is a function of the cell i, not a "
+     "distribution over the cells (Bayes' rule normalises the posterior, lecture 01 §2)"),
+)
+
+
 @check
 def check_door_likelihood(sensor_likelihood):
     """The learner's ``sensor_likelihood(world, z, p_correct)`` builds p(z | x) for every cell."""
-    cases = _likelihood_cases()
-    got = {(k, z): call(sensor_likelihood, world, z, p)
-           for k, (world, p) in enumerate(cases) for z in (0, 1)}
+    cases = [(world, z, p, _door(k, z)) for k, (world, p) in enumerate(_likelihood_cases()) for z in (0, 1)]
+    results = _results(sensor_likelihood, cases, lambda c: c[:3])
+    got = {(k // 2, c[1]): _result(r) for k, (c, r) in enumerate(zip(cases, results))}
+    pairs = _likelihood_cases()
     # Arguments the result does not depend on: compared between calls, so that any fixed
     # value the learner wrote in (a p of 0.9, the comparison world == 1) is caught.
-    for k, (world, p) in enumerate(cases):
+    for k, (world, p) in enumerate(pairs):
         if _same(got[k, 0], got[k, 1]):
             raise CheckFailed(f"your likelihood is the same for z=0 and z=1 (p_correct={p}): it must "
                               "depend on z. It is p(z | x = i) for the reading z that was actually "
                               "received: after a 'wall' reading the wall cells are the likely ones, "
-                              "after a 'door' reading the door cells (compare the map with z, not "
-                              "with a door)")
+                              "after a 'door' reading the door cells (lecture 01 §5): "
+                              + hints.formula("compare the map with z, not with a door"))
     # the self-check names a fixed p_correct once its first case (p = 0.9, where a fixed 0.9
     # is right) has been compared, so that a fixed 1/0 sensor gets its own hint first; drawn
     # p_correct values are no number a learner wrote in, so a graded run names it at once
     # (unless the values are all 0 and 1: the perfect sensor's hint comes first)
     p_first = 0 if inputs.drawing() and not _only_zeros_and_ones(got[0, 1]) else 1
-    for k, (world, p) in enumerate(cases):
-        if k == p_first and _same(got[0, 1], got[1, 1]):
-            raise CheckFailed(f"your likelihood is the same for p_correct={cases[0][1]} and "
-                              f"p_correct={cases[1][1]}: use the argument p_correct, not a fixed number")
-        for z in (0, 1):
-            want = _door(k, z)
-            what = f"likelihood for z={z}, p_correct={p} on a {len(world)}-cell world"
-            arr = as_array(got[k, z], what)
-            if arr.ndim == 0 or arr.shape == (1,):
-                raise CheckFailed(f"{what} is a single number: p(z | x = i) has one entry per cell "
-                                  f"i, shape ({len(world)},) (compare the whole array world == z)")
-            if arr.ndim == 1 and arr.shape != want.shape:
-                raise CheckFailed(f"{what} has {arr.size} entries, expected one per cell of world "
-                                  f"({len(world)}): take the length from the world argument")
-            if arr.shape == want.shape and np.any(arr < 0):
-                raise CheckFailed(f"{what} has negative entries: a probability lies in [0, 1]; "
-                                  "the sensor errs with probability 1 - p_correct (not p_correct - 1)")
-            _expect(arr, want, what, lambda: [
-                (door_likelihood(world, 1 - z, p),
-                 "the values are swapped: p(z | x) is p_correct where the map shows what was sensed "
-                 "and 1 - p_correct where it does not"),
-                (np.where(world == z, 1.0, 0.0),
-                 "a real sensor errs: use p_correct and 1 - p_correct, not 1 and 0"),
-                (np.where(world == z, p, 0.0),
-                 "a cell whose map disagrees with z is not impossible: the sensor errs with "
-                 "probability 1 - p_correct, so give it 1 - p_correct, not 0"),
-                (want / want.sum(),
-                 "do not normalise the likelihood: p(z | x = i) is a function of the cell i, not a "
-                 "distribution over the cells (Bayes' rule normalises the posterior)"),
-            ], hint="p(z | x = i) = p_correct if world[i] == z else 1 - p_correct")
+    for index, (world, z, p, want) in enumerate(cases):
+        k = index // 2
+        if z == 0 and k == p_first and _same(got[0, 1], got[1, 1]):
+            raise CheckFailed(f"your likelihood is the same for p_correct={pairs[0][1]} and "
+                              f"p_correct={pairs[1][1]}: use the argument p_correct, not a fixed number")
+        what = f"likelihood for z={z}, p_correct={p} on a {len(world)}-cell world"
+        arr = as_array(got[k, z], what)
+        if arr.ndim == 0 or arr.shape == (1,):
+            raise CheckFailed(f"{what} is a single number: p(z | x = i) has one entry per cell "
+                              f"i, shape ({len(world)},) (compare the whole array world == z)")
+        if arr.ndim == 1 and arr.shape != want.shape:
+            raise CheckFailed(f"{what} has {arr.size} entries, expected one per cell of world "
+                              f"({len(world)}): take the length from the world argument")
+        if arr.shape == want.shape and np.any(arr < 0):
+            raise CheckFailed(f"{what} has negative entries: a probability lies in [0, 1]; "
+                              "the sensor errs with probability 1 - p_correct (not p_correct - 1)")
+        _expect(results, index, want, what, cases, _LIKELIHOOD_MISTAKES,
+                hint="the likelihood is how probable the reading z is in each cell, given the map "
+                     "and how often the sensor is right (lecture 01 §5): "
+                     + hints.formula("p(z | x = i) = p_correct if world[i] == z else 1 - p_correct"))
 
 
 # ---------------------------------------------------------------------------------------
@@ -245,36 +315,50 @@ def _update_cases():
     return [(p, lk, bayes.histogram_update(p, lk)) for p, lk in zip(priors, likelihoods)]
 
 
+#: The update's known mistakes: (formula of a case (prior, likelihood, want), hint).
+_UPDATE_MISTAKES = (
+    (lambda c: c[0],
+     "the posterior equals the prior: the measurement was not used (the likelihood is "
+     "missing). Bayes' rule weighs each cell's prior by how well that cell explains the "
+     "reading, then normalises (lecture 01 §2)"),
+    (lambda c: bayes.normalise(c[0] + c[1]),
+     "Bayes' rule multiplies prior and likelihood; it does not add them (lecture 01 §2)"),
+    (lambda c: bayes.normalise(c[1]),
+     "the prior is missing: Bayes' rule weighs the likelihood by the prior (lecture 01 §2): "
+     + hints.formula("posterior ∝ likelihood × prior")),
+    (lambda c: bayes.normalise(c[1] / c[0]),
+     "you divided the likelihood by the prior: Bayes' rule multiplies them (lecture 01 §2)"),
+    (lambda c: bayes.normalise(c[1] ** 2 * c[0]),
+     "the likelihood is applied twice: one measurement multiplies the prior by its "
+     "likelihood once (lecture 01 §2)"),
+)
+
+
 @check
 def check_histogram_update(histogram_update):
     """The learner's ``histogram_update(belief, likelihood)`` applies Bayes' rule."""
-    for prior, likelihood, want in _update_cases():
+    cases = _update_cases()
+    results = _results(histogram_update, cases, lambda c: c[:2])
+    for k, (prior, likelihood, want) in enumerate(cases):
         n = len(prior)
-        got = as_array(call(histogram_update, prior, likelihood), "posterior")
+        got = as_array(_result(results[k]), "posterior")
         if got.ndim == 0:
-            raise CheckFailed("the posterior is a single number: multiply element-wise, "
-                              "likelihood * belief (np.dot or @ sums the products into the evidence)")
+            raise CheckFailed("the posterior is a single number: Bayes' rule weighs each cell on its "
+                              "own, an element-wise product (np.dot or @ sums the products into the "
+                              "evidence; lecture 01 §5): " + hints.formula("likelihood * belief"))
         got = expect_shape(got, (n,), "posterior")
         if not np.isclose(got.sum(), 1.0, atol=1e-9):
             proportional = np.allclose(got / got.sum(), want, rtol=1e-7, atol=1e-9) if got.sum() else False
             raise CheckFailed(
                 f"the posterior sums to {got.sum():.4f}, not 1. Hint: divide likelihood × prior by "
-                "the evidence p(z) = Σ_i p(z | x=i) p(x=i), its sum over the cells"
-                + (" (your values are proportional to the right ones: only the normaliser is wrong)"
-                   if proportional else ""))
-        _expect(got, want, "posterior", lambda: [
-            (prior, "the posterior equals the prior: the measurement was not used (the "
-                    "likelihood is missing). Bayes' rule weighs each cell's prior by how well "
-                    "that cell explains the reading, then normalises (lecture 01 §2)"),
-            (bayes.normalise(prior + likelihood),
-             "Bayes' rule multiplies prior and likelihood; it does not add them"),
-            (bayes.normalise(likelihood), "the prior is missing: posterior ∝ likelihood × prior"),
-            (bayes.normalise(likelihood / prior),
-             "you divided the likelihood by the prior: Bayes' rule multiplies them"),
-            (bayes.normalise(likelihood ** 2 * prior),
-             "the likelihood is applied twice: one measurement multiplies the prior by its "
-             "likelihood once"),
-        ], hint="posterior = likelihood * belief / Σ(likelihood * belief)")
+                "the evidence p(z), the probability of the reading over all the cells (lecture 01 "
+                "§2)" + (" (your values are proportional to the right ones: only the normaliser is "
+                         "wrong)" if proportional else "")
+                + ": " + hints.formula("p(z) = Σ_i p(z | x=i) p(x=i), its sum over the cells"))
+        _expect(results, k, want, "posterior", cases, _UPDATE_MISTAKES,
+                hint="Bayes' rule weighs each cell's prior by the likelihood of the reading and "
+                     "normalises by the evidence (lecture 01 §2): "
+                     + hints.formula("posterior = likelihood * belief / Σ(likelihood * belief)"))
 
 
 # ---------------------------------------------------------------------------------------
@@ -323,41 +407,66 @@ def _predict_cases():
     return [(b, T, bayes.histogram_predict(b, T)) for b, T in pairs]
 
 
+#: Where the lecture derives the prediction, and the product that gives it.
+_TOTAL_PROBABILITY = "total probability over the cells the robot comes from (lecture 01 §4 and §5)"
+_PREDICT_PRODUCT = hints.formula("transition @ belief")
+
+
+def _transposed_prediction(case):
+    """The prediction with the transition matrix transposed (the robot moving backwards)."""
+    belief, transition, _ = case
+    return transition.T @ belief
+
+
+#: The prediction's known mistakes: (formula of a case (belief, transition, want), hint).
+_PREDICT_MISTAKES = (
+    (_transposed_prediction,
+     "the transition matrix is transposed (the robot moves backwards): transition[i, j] = "
+     "p(x_k = i | x_k-1 = j) is the probability of moving from cell j to cell i, so p(x_k = i) "
+     "sums over the cells j the robot comes from, the columns of row i (belief @ transition, "
+     f"transition.T @ belief and a sum over axis 0 sum over the rows; {_TOTAL_PROBABILITY})"),
+    (lambda c: _transposed_prediction(c) / _transposed_prediction(c).sum(),
+     "the transition matrix is transposed (then normalised): the prediction sums to 1 by itself "
+     f"({_TOTAL_PROBABILITY})"),
+    (lambda c: c[0],
+     "the predicted belief equals the belief you started from: either the motion model was not "
+     "applied, or the sum ran over the wrong axis (over i, axis 0: each column sums to 1, so "
+     f"Σ_i transition[i, j] belief[j] = belief[j]); sum over j, {_TOTAL_PROBABILITY}: "
+     + _PREDICT_PRODUCT),
+    (lambda c: c[0] * c[1].sum(axis=1),
+     f"the sum ran over the wrong axis: sum over j, the cell the robot comes from ({_TOTAL_PROBABILITY}): "
+     + hints.formula("p(x_k = i) = Σ_j transition[i, j] belief[j], i.e. (transition * belief).sum(axis=1) "
+                     "or transition @ belief")),
+    (lambda c: c[1] @ c[1] @ c[0],
+     "the motion model is applied twice: one prediction is one step of the motion model "
+     f"({_TOTAL_PROBABILITY}): " + _PREDICT_PRODUCT),
+    (lambda c: np.roll(c[0], 1),
+     "you shifted the belief by one cell: the robot may also stay or overshoot; apply the whole "
+     f"motion model ({_TOTAL_PROBABILITY}): " + _PREDICT_PRODUCT),
+    (lambda c: np.roll(c[0], -1),
+     f"you shifted the belief back by one cell: apply the motion model ({_TOTAL_PROBABILITY}): "
+     + _PREDICT_PRODUCT),
+    (lambda c: np.linalg.solve(c[1], c[0]),
+     "you inverted the motion model (that runs it backwards in time): predict forwards "
+     f"({_TOTAL_PROBABILITY}): " + _PREDICT_PRODUCT),
+)
+
+
 @check
 def check_histogram_predict(histogram_predict):
     """The learner's ``histogram_predict(belief, transition)`` applies total probability."""
-    for belief, transition, want in _predict_cases():
+    cases = _predict_cases()
+    results = _results(histogram_predict, cases, lambda c: c[:2])
+    for k, (belief, transition, want) in enumerate(cases):
         n = len(belief)
-        got = as_array(call(histogram_predict, belief, transition), "predicted belief")
+        got = as_array(_result(results[k]), "predicted belief")
         if got.shape == (n, n):
             raise CheckFailed(f"the predicted belief is an ({n}, {n}) matrix: transition * belief "
-                              "multiplies element-wise without summing over j; use "
-                              "transition @ belief")
-        transposed = transition.T @ belief
-        _expect(got, want, "predicted belief", lambda: [
-            (transposed, "the transition matrix is transposed (the robot moves backwards): "
-                         "transition[i, j] = p(x_k = i | x_k-1 = j) is the probability of moving "
-                         "from cell j to cell i, so p(x_k = i) sums over the cells j the robot "
-                         "comes from, the columns of row i (belief @ transition, "
-                         "transition.T @ belief and a sum over axis 0 sum over the rows)"),
-            (transposed / transposed.sum(), "the transition matrix is transposed (then "
-                                            "normalised): transition @ belief sums to 1 by itself"),
-            (belief, "the predicted belief equals the belief you started from: either the motion "
-                     "model was not applied, or the sum ran over the wrong axis (over i, axis 0: "
-                     "each column sums to 1, so Σ_i transition[i, j] belief[j] = belief[j]); "
-                     "sum over j: transition @ belief"),
-            (belief * transition.sum(axis=1),
-             "the sum ran over the wrong axis: p(x_k = i) = Σ_j transition[i, j] belief[j], "
-             "i.e. (transition * belief).sum(axis=1) or transition @ belief"),
-            (transition @ transition @ belief, "the motion model is applied twice: one prediction "
-                                               "is one product transition @ belief"),
-            (np.roll(belief, 1), "you shifted the belief by one cell: the robot may also stay or "
-                                 "overshoot; apply the whole motion model, transition @ belief"),
-            (np.roll(belief, -1), "you shifted the belief back by one cell: apply the motion "
-                                  "model, transition @ belief"),
-            (np.linalg.solve(transition, belief), "you inverted the motion model (that runs it "
-                                                   "backwards in time): predict with transition @ belief"),
-        ], hint="p(x_k = i) = Σ_j p(x_k = i | x_k-1 = j) p(x_k-1 = j)")
+                              "multiplies element-wise without summing over j, the cell the robot "
+                              f"comes from ({_TOTAL_PROBABILITY}): " + hints.formula("use transition @ belief"))
+        _expect(results, k, want, "predicted belief", cases, _PREDICT_MISTAKES,
+                hint=f"the prediction is the law of {_TOTAL_PROBABILITY}: "
+                     + hints.formula("p(x_k = i) = Σ_j p(x_k = i | x_k-1 = j) p(x_k-1 = j)"))
         if not np.isclose(got.sum(), 1.0, atol=1e-9):
             raise CheckFailed("the predicted belief does not sum to 1: total probability conserves mass")
 
@@ -450,9 +559,12 @@ def _separates(args, uniform_start: bool) -> bool:
     From a uniform belief a doubly stochastic model changes nothing, so there a prediction
     before the first reading agrees with the reference, and predicting from belief0 agrees
     with restarting from it (whose hint names both): the self-check's corridor run has the
-    same two coincidences, and its second run separates them."""
+    same two coincidences, and its second run separates them. The mistakes about the world
+    and belief0 arguments are left out where the run's own arguments make them the
+    reference (the corridor, a uniform belief0)."""
     want = reference_histogram_filter(*args)
-    mistakes = [np.asarray(wrong, dtype=float) for wrong, _ in _mistakes_of(args, want)]
+    listed = _RECURSION_MISTAKES + tuple(m for m in _ARGUMENT_MISTAKES if m[2](args))
+    mistakes = [np.asarray(formula((args, want)), dtype=float) for formula, *_ in listed]
     agreeing = ({3} if uniform_start else set())          # _variant_filter(predict_first=True)
     if any(_differs(want, wrong) == (k in agreeing) for k, wrong in enumerate(mistakes)):
         return False
@@ -461,57 +573,64 @@ def _separates(args, uniform_start: bool) -> bool:
                for j in range(len(mistakes)) for k in range(j + 1, len(mistakes)))
 
 
+#: Where a recursion's hint points: the section that draws the loop.
+_THE_LOOP = "the loop the filter runs, lecture 01 §5"
+
+#: The recursion's known mistakes: (formula of a case (args, want), hint).
+_RECURSION_MISTAKES = (
+    (lambda c: _variant_filter(*c[0], restart=True),
+     "each step restarts from belief0 and uses its own reading only: the filter neither "
+     f"moves nor remembers ({_THE_LOOP}). "
+     + hints.formula("Each step's prior is the previous posterior, moved by the motion model (no "
+                     "motion before the first reading)")),
+    (lambda c: _variant_filter(*c[0], from_belief0=True),
+     f"each step predicts from belief0: predict from the previous posterior ({_THE_LOOP})"),
+    (lambda c: _variant_filter(*c[0], no_predict=True),
+     "the prediction step is missing: after the first step, predict with the motion model "
+     f"before each update ({_THE_LOOP})"),
+    (lambda c: _variant_filter(*c[0], predict_first=True),
+     "there is a prediction before the first measurement: at step 0 the initial belief is "
+     f"the prior, update it directly ({_THE_LOOP})"),
+    (lambda c: _variant_filter(*c[0], store_prior=True),
+     "you stored the prior (the predicted belief) of each step: store the posterior, after "
+     f"the update ({_THE_LOOP})"),
+    (lambda c: reference_histogram_filter(c[0][0], c[0][1].T, *c[0][2:]),
+     "the motion model is transposed: the robot moves backwards (lecture 01 §5): "
+     + hints.formula("predict with transition @ belief")),
+    (lambda c: reference_histogram_filter(*c[0][:3], np.roll(c[0][3], 1), c[0][4]),
+     "each update uses the previous step's measurement: the measurement index is off by "
+     "one; update step k with measurements[k]"),
+    (lambda c: reference_histogram_filter(*c[0][:3], np.full_like(c[0][3], c[0][3][0]), c[0][4]),
+     "every update uses the first measurement: update step k with measurements[k]"),
+    (lambda c: np.array([bayes.histogram_predict(b, c[0][1]) for b in c[1]]),
+     "you stored the belief after the next prediction: store the posterior right after "
+     f"the update ({_THE_LOOP})"),
+    (lambda c: np.tile(c[1][-1], (len(c[0][3]), 1)),
+     "every row holds the last posterior: one array was appended again and again and "
+     "changed in place; append a new array (or a copy) at every step"),
+    (lambda c: reference_histogram_filter(*c[0][:4], 1.0 - c[0][4]),
+     "the likelihood is swapped: pass p_correct itself to the sensor model"),
+)
+
+#: Mistakes about the run's arguments: (formula, hint, whether a run's arguments can show it).
+#: On the corridor a run that reads the global CORRIDOR is right, from a uniform belief0 one
+#: that starts uniform.
+_ARGUMENT_MISTAKES = (
+    (lambda c: reference_histogram_filter(c[0][0], c[0][1], CORRIDOR, *c[0][3:]),
+     "the sensor model used the global CORRIDOR: use the world argument",
+     lambda args: args[2] is not CORRIDOR),
+    (lambda c: reference_histogram_filter(np.full(len(c[0][0]), 1.0 / len(c[0][0])), *c[0][1:]),
+     "the run starts from a uniform belief: start from the belief0 argument",
+     lambda args: not np.allclose(args[0], args[0][0])),
+)
+
+
 @functools.cache
-def _filter_mistakes(index: int) -> list:
-    """The beliefs that the recursion's known mistakes give on case ``index``, with hints
-    (built only when a learner's run is wrong)."""
-    return _mistakes_of(*_filter_cases()[index])
-
-
-def _mistakes_of(args, want) -> list:
-    """The recursion's known mistakes on the run ``args`` (whose beliefs are ``want``)."""
-    belief0, transition, world, z, p = args
-    n = len(belief0)
-    mistakes = [
-        (_variant_filter(*args, restart=True),
-         "each step restarts from belief0 and uses its own reading only: the filter neither "
-         "moves nor remembers. Each step's prior is the previous posterior, moved by the "
-         "motion model (no motion before the first reading)"),
-        (_variant_filter(*args, from_belief0=True),
-         "each step predicts from belief0: predict from the previous posterior"),
-        (_variant_filter(*args, no_predict=True),
-         "the prediction step is missing: after the first step, predict with the motion model "
-         "before each update"),
-        (_variant_filter(*args, predict_first=True),
-         "there is a prediction before the first measurement: at step 0 the initial belief is "
-         "the prior, update it directly"),
-        (_variant_filter(*args, store_prior=True),
-         "you stored the prior (the predicted belief) of each step: store the posterior, after "
-         "the update"),
-        (reference_histogram_filter(belief0, transition.T, world, z, p),
-         "the motion model is transposed: predict with transition @ belief"),
-        (reference_histogram_filter(belief0, transition, world, np.roll(z, 1), p),
-         "each update uses the previous step's measurement: the measurement index is off by "
-         "one; update step k with measurements[k]"),
-        (reference_histogram_filter(belief0, transition, world, np.full_like(z, z[0]), p),
-         "every update uses the first measurement: update step k with measurements[k]"),
-        (np.array([bayes.histogram_predict(b, transition) for b in want]),
-         "you stored the belief after the next prediction: store the posterior right after "
-         "the update"),
-        (np.tile(want[-1], (len(z), 1)),
-         "every row holds the last posterior: one array was appended again and again and "
-         "changed in place; append a new array (or a copy) at every step"),
-        (reference_histogram_filter(belief0, transition, world, z, 1.0 - p),
-         "the likelihood is swapped: pass p_correct itself to the sensor model"),
-    ]
-    if world is not CORRIDOR:
-        mistakes.append((reference_histogram_filter(belief0, transition, CORRIDOR, z, p),
-                         "the sensor model used the global CORRIDOR: use the world argument"))
-    if not np.allclose(belief0, belief0[0]):
-        mistakes.append((reference_histogram_filter(np.full(n, 1.0 / n), transition, world, z, p),
-                         "the run starts from a uniform belief: start from the belief0 "
-                         "argument"))
-    return mistakes
+def _recursion_mistake(index: int, j: int) -> np.ndarray:
+    """The beliefs of mistake ``j`` (of :data:`_RECURSION_MISTAKES`, then
+    :data:`_ARGUMENT_MISTAKES`) on case ``index``, built only when a learner's run is wrong."""
+    formula = (_RECURSION_MISTAKES + _ARGUMENT_MISTAKES)[j][0]
+    return formula(_filter_cases()[index])
 
 
 def _ignored_argument(run_histogram_filter, args, got) -> str | None:
@@ -533,8 +652,11 @@ def _ignored_argument(run_histogram_filter, args, got) -> str | None:
              "histogram_update": "histogram_update"})
 def check_histogram_filter(run_histogram_filter):
     """The learner's whole recursion on seeded corridor runs matches the reference."""
-    for index, (args, want) in enumerate(_filter_cases()):
-        got = as_array(call(run_histogram_filter, *args), "beliefs")
+    cases = _filter_cases()
+    results = _results(run_histogram_filter, cases, lambda c: c[0])
+    mistakes = [(j, m[1]) for j, m in enumerate(_RECURSION_MISTAKES + _ARGUMENT_MISTAKES)]
+    for index, (args, want) in enumerate(cases):
+        got = as_array(_result(results[index]), "beliefs")
         steps, n = want.shape
         if got.shape == (n,):
             raise CheckFailed(f"beliefs has shape {got.shape}: return every step's posterior, "
@@ -542,20 +664,24 @@ def check_histogram_filter(run_histogram_filter):
         if got.ndim == 2 and got.shape[1] == n and got.shape[0] != steps:
             raise CheckFailed(f"beliefs has {got.shape[0]} rows for {steps} measurements: one "
                               "posterior per measurement (is the loop off by one?)")
-        try:
-            # rtol 1e-6 (as before): a dozen chained updates keep a correct run within ~1e-13
-            # of the reference; the closest listed mistake is off by more than 1e-2
-            _expect(got, want, "beliefs", lambda: _filter_mistakes(index), rtol=1e-6, atol=1e-9,
-                    hint="at each step after the first, predict from the previous posterior, "
-                              "then update")
-        except CheckFailed as exc:
-            if "Hint: at each step" in str(exc):      # no known mistake matched
-                ignored = _ignored_argument(run_histogram_filter, args, got)
-                if ignored is not None:
-                    raise CheckFailed(f"beliefs differ from the reference, and your run gives the "
-                                      f"same beliefs whatever {ignored} is: use the {ignored} "
-                                      "argument, not a fixed value") from None
-            raise
+        arr = expect_shape(got, want.shape, "beliefs")
+        # rtol 1e-6 (as before): a dozen chained updates keep a correct run within ~1e-13
+        # of the reference; the closest listed mistake is off by more than 1e-2
+        if np.allclose(arr, want, rtol=1e-6, atol=1e-9):
+            continue
+        why = known_mistake(results, range(len(cases)), mistakes,
+                            lambda g, w, _: _agrees(g, w, rtol=1e-6, atol=1e-9),
+                            evaluate=lambda j, i: _recursion_mistake(i, j), case=index)
+        if why is not None:
+            raise CheckFailed(f"beliefs is wrong. Hint: {why}")
+        ignored = _ignored_argument(run_histogram_filter, args, got)
+        if ignored is not None:
+            raise CheckFailed(f"beliefs differ from the reference, and your run gives the "
+                              f"same beliefs whatever {ignored} is: use the {ignored} "
+                              "argument, not a fixed value")
+        expect_close(arr, want, "beliefs", rtol=1e-6, atol=1e-9,
+                     hint=f"at each step after the first, predict from the previous posterior, then "
+                          f"update ({_THE_LOOP})")
 
 
 # ---------------------------------------------------------------------------------------
@@ -621,26 +747,28 @@ def check_corridor_motion_model(circular_motion_model):
             if any(np.allclose(got, _unwrapped_model(n, step_probs, d), atol=1e-12) for d in (1, -1)):
                 raise CheckFailed(
                     f"{what}: some columns sum to less than 1, probability is lost at the end of "
-                    "the corridor. The corridor is circular: a step past the last cell comes back "
+                    "the corridor. Hint: the corridor is circular: a step past the last cell comes back "
                     "to cell 0 (and a step back from cell 0 lands on the last cell); wrap the "
                     "destination around")
             if np.allclose(got, _overwritten_model(n, step_probs), atol=1e-12):
                 raise CheckFailed(
-                    f"{what}: some columns sum to less than 1. Offsets that land on the same cell "
+                    f"{what}: some columns sum to less than 1. Hint: offsets that land on the same cell "
                     "(here all of them, modulo n) are different ways of getting there: their "
                     "probabilities add up, the last one must not replace the others")
             raise CheckFailed(
-                f"{what}: column sums {np.round(got.sum(axis=0), 4)}, expected all 1. Column j is "
-                "the distribution of where a robot in cell j ends up: it sums to one")
+                f"{what}: column sums {np.round(got.sum(axis=0), 4)}, expected all 1. Hint: column j is "
+                "the distribution of where a robot in cell j ends up, so it sums to one (lecture 01 §5)")
         order = list(step_probs.values())
         expect_close(got, want, what, mistakes=[
             (want.T, "the model is transposed: your robot moves backwards. transition[i, j] is the "
-                     "probability of going FROM cell j TO cell i, so a step of +1 from cell j puts "
-                     "its probability in row j + 1 of column j"),
+                     "probability of going FROM cell j TO cell i (lecture 01 §5): "
+                     + hints.formula("a step of +1 from cell j puts its probability in row j + 1 of "
+                                     "column j")),
             (bayes.circular_motion_model(n, dict(enumerate(order))),
              "the offsets are the keys of step_probs (how many cells the robot moves), not the "
              "positions 0, 1, 2, ... of its probabilities"),
             (np.full((n, n), 1.0 / n), "a uniform matrix forgets the motion: each column must "
                                        "follow step_probs"),
-        ], hint="from cell j the robot ends in cell j + offset (around the ring) with probability "
-                "step_probs[offset]; see lecture 01 §5")
+        ], hint="column j is where a robot in cell j ends up, each offset of step_probs taking it "
+                "that many cells round the ring (lecture 01 §5): "
+                + hints.formula("transition[(j + offset) % n, j] += step_probs[offset]"))

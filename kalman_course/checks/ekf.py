@@ -4,7 +4,8 @@ and chapter 06's challenge, the IEKF's convergence test in the prior's standard 
 The radar cases are CTRV states relative to a radar: a few true states of the car on a
 KITTI excerpt (radar parked in the middle of it) and a seeded set placed at chosen
 bearings, so that every quadrant, both sides of 0 and of ±π/2, and both sides of the ±π
-cut are seen, with headings in every quadrant. The EKF and IEKF updates are graded on
+cut are seen, with headings in every quadrant; the radar model alone is also graded next to the
+radar (ρ from 1e-2 down to 1e-4 m, where h is still defined). The EKF and IEKF updates are graded on
 two kinds of cases: the chapter 06 scenario (priors of the reference filter on KITTI,
 precise range–bearing measurements to two beacons: n = m = 4, diagonal R) and radar
 updates of a CTRV prior (n = 5, m = 3, so that a transpose changes the shape), with an
@@ -51,10 +52,12 @@ from kalman_course.chapters import beacons
 from kalman_course.checks import cases as inputs  # `cases` names the lists of cases below
 from kalman_course.core import so3
 from kalman_course.core.angles import wrap_angle
-from kalman_course.core.linalg import gain, innovation_covariance, short_update, symmetrise
+from kalman_course.core.linalg import gain, innovation_covariance, short_update
 from kalman_course.core.numdiff import numerical_jacobian
 from kalman_course.filters import ekf
-from kalman_course.checks.harness import CheckFailed, call, check, expect_shape, expect_symmetric, type_name
+from kalman_course.checks import hints
+from kalman_course.checks.harness import (CheckFailed, call, check, expect_shape, expect_symmetric, known_mistake,
+                                          type_name, with_symmetrised)
 from kalman_course.chapters.motion import kitti_model_states
 
 RADAR_EXCERPT = "turns"
@@ -104,7 +107,11 @@ def _judge(results, *, close, hint):
         can coincide with the right answer, or with another mistake, on one case: a wrap
         that works one way only is the unwrapped difference on a case crossing the other
         way, but not on the case crossing its way); else the first that matches on every
-        failing case; else the first that matches on any; else ``hint``.
+        failing case; else the first that matches on any; else ``hint``. The first two
+        questions are :func:`harness.known_mistake`'s, asked of the mistakes that match the
+        learner somewhere it failed (a mistake is known by its hint, and may have several
+        wrong values on a case; one it has no value for, or none of the right shape, does
+        not count against it there).
     """
     def close_of(r):
         return r[4] if len(r) > 4 else close
@@ -112,24 +119,35 @@ def _judge(results, *, close, hint):
     failing = [k for k, r in enumerate(results) if not close_of(r)(r[0], np.asarray(r[1], dtype=float))]
     if not failing:
         return
-    order, table = [], {}          # table[k][hint]: does a mistake with this hint match case k?
-    for k, r in enumerate(results):
-        seen = {}
+    order, wrong_values = [], []   # wrong_values[k][hint]: that mistake's usable values on case k
+    for r in results:
+        values = {}
         for wrong, why in r[3]():
             if why not in order:
                 order.append(why)
             wrong = np.asarray(wrong, dtype=float)
-            if wrong.shape != r[0].shape or not np.all(np.isfinite(wrong)):
-                continue
-            seen[why] = seen.get(why, False) or close_of(r)(r[0], wrong)
-        table[k] = seen
-    matched = [why for why in order if any(table[k].get(why) for k in failing)]
-    everywhere = [why for why in matched if all(t.get(why, True) for t in table.values())]
-    on_failing = [why for why in matched if all(table[k].get(why, True) for k in failing)]
-    for chosen in (everywhere, on_failing, matched):
-        if chosen:
-            k = next(k for k in failing if table[k].get(chosen[0]))
-            raise CheckFailed(f"{results[k][2]} is wrong. Hint: {chosen[0]}")
+            if wrong.shape == r[0].shape and np.all(np.isfinite(wrong)):
+                values.setdefault(why, []).append(wrong)
+        wrong_values.append(values)
+
+    def agrees(k, why) -> bool | None:
+        """Whether mistake ``why`` reproduces the learner's value on case k (None: no value there)."""
+        values = wrong_values[k].get(why)
+        return None if values is None else any(close_of(results[k])(results[k][0], w) for w in values)
+
+    got = [r[0] for r in results]
+    matched = [(why, why) for why in order if any(agrees(k, why) for k in failing)]
+
+    def explains(_, why, k):   # known_mistake's `close`; an undefined mistake does not count
+        return agrees(k, why) is not False
+
+    chosen = (known_mistake(got, range(len(results)), matched, explains, evaluate=lambda why, k: why)
+              or known_mistake([got[k] for k in failing], failing, matched,
+                               lambda g, why, i: explains(g, why, failing[i]), evaluate=lambda why, k: why)
+              or (matched[0][1] if matched else None))
+    if chosen is not None:
+        k = next(k for k in failing if agrees(k, chosen))
+        raise CheckFailed(f"{results[k][2]} is wrong. Hint: {chosen}")
     k = failing[0]
     value, expected, what = results[k][:3]
     err = np.max(np.abs(value - np.asarray(expected, dtype=float)))
@@ -218,6 +236,34 @@ def _radar_references():
     return tuple((x, symbolic.radar_observation(x), symbolic.radar_jacobian(x)) for x in radar_states())
 
 
+#: (bearing φ, range ρ, heading ψ, speed v) of the radar model's states next to the radar: h is
+#: defined at every ρ > 0 and must be right there too (ρ̇ divides by ρ; a guard such as ρ + ε or
+#: max(ρ, ε) changes h where it is defined). Only ``radar_h`` is graded there: the lecture's
+#: finite-difference Jacobians (a correct answer above a few metres) lose accuracy as δ/ρ grows.
+_NEAR_RADAR = ((2.6, 1e-2, -0.4, 5.0), (-2.0, 1e-4, 1.0, 8.0), (-0.5, 3e-3, 2.5, 12.0))
+
+
+@functools.lru_cache(maxsize=None)
+def _radar_h_references():
+    """(x, h(x)) of the radar model's check: every radar state, then those next to the radar
+    (:data:`_NEAR_RADAR`; under a run seed at drawn bearings, ranges 10^-U(2, 4) m, headings and
+    speeds)."""
+    near = _NEAR_RADAR
+    if inputs.drawing():
+        rng = inputs.rng("ekf.radar_near", 0)
+        near = tuple((rng.uniform(-np.pi, np.pi), 10.0 ** -rng.uniform(2.0, 4.0), rng.uniform(-np.pi, np.pi),
+                      rng.uniform(3.0, 20.0)) for _ in _NEAR_RADAR)
+    states = [x for x, _, _ in _radar_references()]
+    states += [np.array([rho * np.cos(phi), rho * np.sin(phi), v, psi, 0.1]) for phi, rho, psi, v in near]
+    return tuple((x, symbolic.radar_observation(x)) for x in states)
+
+
+_RADAR_MODEL = ("h(x) = [ρ, atan2(p_y, p_x), (p_x v_x + p_y v_y)/ρ] with ρ = √(p_x² + p_y²), v_x = v cos ψ, "
+                "v_y = v sin ψ")
+_SINGLE = ("your h computes in single precision: its values agree with the reference to about 7 digits, as many "
+           "as float32 keeps; compute in NumPy's default float64 (no dtype=np.float32, no np.float32(...))")
+
+
 def _radar_h_variants(x):
     """h(x) as plausible mistakes compute it, each with the hint that names the mistake."""
     px, py, v, psi, _ = x
@@ -225,6 +271,7 @@ def _radar_h_variants(x):
     vx, vy = v * np.cos(psi), v * np.sin(psi)
     rate = (px * vx + py * vy) / rho
     ref = np.array([rho, phi, rate])
+    rate_formula = hints.formula(": ρ̇ = (p_x v_x + p_y v_y)/ρ")
 
     def with_(i, value):
         out = ref.copy()
@@ -232,49 +279,80 @@ def _radar_h_variants(x):
         return out
 
     return [
-        (with_(1, np.arctan(py / px)), "φ = atan2(p_y, p_x): arctan(p_y / p_x) loses the quadrant when p_x < 0"),
-        (with_(1, np.arctan2(px, py)), "the arguments of atan2 are swapped: φ = atan2(p_y, p_x), y first"),
+        (with_(1, np.arctan(py / px)), "arctan(p_y / p_x) loses the quadrant when p_x < 0: the bearing needs "
+                                       "the two-argument arctangent atan2 (lecture 05 §3)"
+                                       + hints.formula(", φ = atan2(p_y, p_x)")),
+        (with_(1, np.arctan2(px, py)), "the arguments of atan2 are swapped (lecture 05 §3)"
+                                       + hints.formula(": φ = atan2(p_y, p_x), y first")),
         (with_(1, np.degrees(phi)), "the bearing is in radians, not degrees"),
-        (with_(1, np.mod(phi, 2 * np.pi)), "the bearing lies in (−π, π] like the radar's; yours is in "
-                                           "[0, 2π)"),
         (np.array([rho**2, phi, (px * vx + py * vy) / rho**2]),
-         "ρ = √(p_x² + p_y²): the square root is missing"),
+         "the range's square root is missing (lecture 05 §3)" + hints.formula(": ρ = √(p_x² + p_y²)")),
         (with_(2, v), "the range rate is the velocity's component along the line of sight (the unit vector "
                       "p/ρ from the radar to the target), not the speed: a target crossing the beam has ρ̇ = 0"),
-        (with_(2, -rate), "ρ̇ is positive when the target moves away: ρ̇ = +(p_x v_x + p_y v_y)/ρ, "
-                          "check the sign"),
-        (with_(2, rate * rho), "ρ̇ = (p_x v_x + p_y v_y)/ρ: divide by ρ (the line of sight is the unit "
-                               "vector p/ρ)"),
-        (with_(2, rate / rho), "ρ̇ = (p_x v_x + p_y v_y)/ρ: divide by ρ once, not by ρ²"),
+        (with_(2, -rate), "ρ̇ is positive when the target moves away: check the sign (lecture 05 §3)"
+                          + hints.formula(", ρ̇ = +(p_x v_x + p_y v_y)/ρ")),
+        (with_(2, rate * rho), "the range rate projects the velocity on the line of sight, the unit vector p/ρ: "
+                               "divide by ρ (lecture 05 §3)" + rate_formula),
+        (with_(2, rate / rho), "the range rate divides by ρ once, not by ρ² (lecture 05 §3)" + rate_formula),
         (with_(2, (px * v * np.sin(psi) + py * v * np.cos(psi)) / rho),
-         "v_x = v cos ψ and v_y = v sin ψ: cos and sin are swapped"),
-        (with_(2, (px * vx - py * vy) / rho), "ρ̇ = (p_x v_x + p_y v_y)/ρ: check the sign of the p_y v_y term"),
-        (with_(2, (px * vy + py * vx) / rho), "ρ̇ = (p_x v_x + p_y v_y)/ρ: v_x and v_y are swapped"),
+         "cos and sin are swapped in the velocity's components (ψ is measured from the x axis; lecture 05 §3)"
+         + hints.formula(": v_x = v cos ψ and v_y = v sin ψ")),
+        (with_(2, (px * vx - py * vy) / rho), "check the sign of the p_y v_y term of the range rate (lecture 05 §3)"
+                                              + rate_formula),
+        (with_(2, (px * vy + py * vx) / rho), "v_x and v_y are swapped in the range rate (lecture 05 §3)" + rate_formula),
         (np.array([phi, rho, rate]), "the order of the measurement is [ρ, φ, ρ̇]: range first"),
         (np.array([rho, rate, phi]), "the order of the measurement is [ρ, φ, ρ̇]: range rate last"),
+        # float64 computed, float32 returned (np.array(..., dtype=np.float32)): the reference rounded
+        (ref.astype(np.float32), _SINGLE),
     ]
+
+
+def _single_precision(value: np.ndarray, ref: np.ndarray) -> bool:
+    """Whether ``value`` looks computed in float32: every entry a float32 number, and within
+    float32's rounding (a few 1e-7, relative) of the reference, but not within float64's."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rel = np.abs(value - ref) / np.maximum(np.abs(ref), 1e-30)
+    return bool(np.all(value.astype(np.float32) == value) and np.max(rel) < 1e-5)
+
+
+#: radar_h's tolerance: correct ways of writing h (hypot or √, atan2 or the angle of p_x + i p_y,
+#: (p · v)/ρ or v cos(ψ − φ)) agree to ≈ 1e-15 relative, 1e-14 m/s absolute where ρ̇ ≈ 0 (a
+#: target crossing the beam), so rtol 1e-10 and atol 1e-12 leave round-off a margin of 100 and
+#: still see float32's rounding (6e-8 relative), which the harness's default rtol 1e-7 would not.
+RADAR_H_RTOL, RADAR_H_ATOL = 1e-10, 1e-12
 
 
 @check
 def check_radar_h(radar_h):
     """The learner's ``radar_h(x)`` for a CTRV state [p_x, p_y, v, ψ, ω].
 
-    Tolerance: rtol 1e-7, atol 1e-9 (the harness default): h is a closed form, every
-    correct way of writing it agrees to round-off (≈ 1e-14 relative).
+    Tolerance: :data:`RADAR_H_RTOL`, :data:`RADAR_H_ATOL` (h is a closed form; see there). The
+    bearing is compared modulo 2π: the course's radar reports bearings in (−π, π] (lecture 05
+    §3, atan2), but a bearing is a point on the circle (§4), and every use of h in the course
+    goes through the wrapped residual (``radar_residual``, ``ekf_update``'s ``residual``), so a
+    learner's h in [0, 2π) gives the same residuals and the same updates; as chapter 04 accepts
+    a wrapped heading, this check accepts a bearing off by whole turns. The residual's check still
+    demands the wrap (a residual is a difference, which must be small to mean anything).
     """
-    close = _allclose(1e-7, 1e-9)
+    close = _allclose(RADAR_H_RTOL, RADAR_H_ATOL)
     results = []
-    for x, h, _ in _radar_references():
+    for x, h in _radar_h_references():
         got = expect_shape(call(radar_h, x), (3,), "radar_h(x)")
-        results.append((got, h, f"radar_h at p = ({x[0]:.3f}, {x[1]:.3f}) m, "
+        turns = h[1] + wrap_angle(got[1] - h[1])
+        if abs(turns - h[1]) < 1e-9 and turns != got[1]:
+            got = got.copy()            # the same bearing, a whole number of turns off
+            got[1] = turns
+        results.append((got, h, f"radar_h at p = ({x[0]:.4g}, {x[1]:.4g}) m, "
                         f"ψ = {x[3]:.2f} rad", functools.partial(_radar_h_variants, x)))
 
     def hint(k):
         got, ref = results[k][0], results[k][1]
+        if _single_precision(got, ref):
+            return _SINGLE
         wrong = [name for name, a, b in zip(("the range ρ", "the bearing φ", "the range rate ρ̇"), got, ref)
                  if not close(a, b)]
-        return (f"{' and '.join(wrong)} {'is' if len(wrong) == 1 else 'are'} wrong; h(x) = [ρ, atan2(p_y, p_x), "
-                "(p_x v_x + p_y v_y)/ρ] with ρ = √(p_x² + p_y²), v_x = v cos ψ, v_y = v sin ψ")
+        return (f"{' and '.join(wrong)} {'is' if len(wrong) == 1 else 'are'} wrong; check them against the radar "
+                "model of lecture 05 §3" + hints.formula(": " + _RADAR_MODEL))
 
     _judge(results, close=close, hint=hint)
 
@@ -292,27 +370,32 @@ def _radar_jacobian_variants(x, G):
             out[i, j] = value
         return out
 
-    cv = "the article's Jacobian is for the CV state [p_x, p_y, v_x, v_y]; this state is CTRV " \
-         "[p_x, p_y, v, ψ, ω], and v_x = v cos ψ, v_y = v sin ψ depend on both v and ψ: by the chain rule, " \
-         "∂ρ̇/∂v = ∂ρ̇/∂v_x ∂v_x/∂v + ∂ρ̇/∂v_y ∂v_y/∂v, and likewise for ψ"
+    cv = ("the article's Jacobian is for the CV state [p_x, p_y, v_x, v_y]; this state is CTRV "
+          "[p_x, p_y, v, ψ, ω], and v_x = v cos ψ, v_y = v sin ψ depend on both v and ψ: carry the CV entries "
+          "over by the chain rule (lecture 05 §3)"
+          + hints.formula(", ∂ρ̇/∂v = ∂ρ̇/∂v_x ∂v_x/∂v + ∂ρ̇/∂v_y ∂v_y/∂v, and likewise for ψ"))
+    bearing_row = hints.formula(": ∂φ/∂p_x = −p_y/ρ², ∂φ/∂p_y = p_x/ρ²")
+    heading = hints.formula(": ∂ρ̇/∂ψ = (p_y v_x − p_x v_y)/ρ")
     return [
         (with_({(1, 0): py / r2, (1, 1): -px / r2}),
-         "∂φ/∂p_x = −p_y/ρ² and ∂φ/∂p_y = p_x/ρ²: check the signs of the bearing row"),
-        (with_({(1, 0): -py / r, (1, 1): px / r}), "the bearing row is divided by ρ², not ρ: ∂φ/∂p_x = −p_y/ρ²"),
-        (with_({(1, 0): -px / r2, (1, 1): py / r2}), "∂φ/∂p_x = −p_y/ρ² and ∂φ/∂p_y = p_x/ρ²: p_x and p_y "
-                                                     "are swapped in the bearing row"),
+         "check the signs of the bearing row (lecture 05 §3)" + bearing_row),
+        (with_({(1, 0): -py / r, (1, 1): px / r}), "the bearing row is divided by ρ², not ρ (lecture 05 §3)" + bearing_row),
+        (with_({(1, 0): -px / r2, (1, 1): py / r2}), "p_x and p_y are swapped in the bearing row (lecture 05 §3)"
+                                                     + bearing_row),
         (with_({(2, 3): 0.0}), "the range rate depends on the heading through v_x = v cos ψ, "
-                               "v_y = v sin ψ: ∂ρ̇/∂ψ = (p_y v_x − p_x v_y)/ρ, not 0"),
-        (with_({(2, 3): -G[2, 3]}), "check the sign of ∂ρ̇/∂ψ = (p_y v_x − p_x v_y)/ρ"),
+                               "v_y = v sin ψ: ∂ρ̇/∂ψ is not 0 (lecture 05 §3)" + heading),
+        (with_({(2, 3): -G[2, 3]}), "check the sign of ∂ρ̇/∂ψ (lecture 05 §3)" + heading),
         (with_({(2, 2): px / r}), cv),
         (with_({(2, 3): py / r}), cv),
         (with_({(2, 2): px / r, (2, 3): py / r}), cv),
-        (with_({(0, 0): px / r2, (0, 1): py / r2}), "∂ρ/∂p = p/ρ (a unit vector), not p/ρ²"),
+        (with_({(0, 0): px / r2, (0, 1): py / r2}), "the range row is a unit vector, the direction of p: divided "
+                                                    "by ρ once, not by ρ² (lecture 05 §3)" + hints.formula(": ∂ρ/∂p = p/ρ")),
         (with_({(2, 0): G[2, 1], (2, 1): G[2, 0]}), "∂ρ̇/∂p_x and ∂ρ̇/∂p_y are swapped"),
         (with_({(2, 0): G[2, 0] * r, (2, 1): G[2, 1] * r}),
-         "∂ρ̇/∂p has ρ³ in the denominator (quotient rule on (p·v)/ρ), not ρ²"),
+         "∂ρ̇/∂p has ρ³ in the denominator (the quotient rule on (p·v)/ρ), not ρ²"),
         (with_({(2, 0): vx / r, (2, 1): vy / r}),
-         "∂ρ̇/∂p_x: ρ depends on p_x too; the quotient rule gives p_y (v_x p_y − v_y p_x)/ρ³, not v_x/ρ"),
+         "∂ρ̇/∂p_x: ρ depends on p_x too, so use the quotient rule (lecture 05 §3)"
+         + hints.formula(", which gives p_y (v_x p_y − v_y p_x)/ρ³, not v_x/ρ")),
     ]
 
 
@@ -321,7 +404,8 @@ def _jacobian_entries_message(got, G, bad) -> str:
     names = []
     for i, j in zip(*np.nonzero(bad)):
         formula = _JACOBIAN_ENTRIES.get((i, j), "0 (h does not depend on it)")
-        names.append(f"∂{_ROWS[i]}/∂{_COLS[j]} (G[{i}, {j}]) is {got[i, j]:.6g}, should be {formula} = {G[i, j]:.6g}")
+        names.append(f"∂{_ROWS[i]}/∂{_COLS[j]} (G[{i}, {j}]) is {got[i, j]:.6g}, should be "
+                     + hints.formula(f"{formula} = ") + f"{G[i, j]:.6g}")
     return "; ".join(names)
 
 
@@ -375,11 +459,12 @@ def check_radar_jacobian(radar_jacobian):
         extra = ""
         if np.max(np.abs(got - G)[1]) > 1.0:
             extra = (" If you use finite differences of h: near the ±π cut the bearing jumps by 2π between "
-                     "x and x + δ, so wrap the difference of the bearings.")
+                     "x and x + δ, so wrap the difference of the bearings (lecture 05 §4).")
         elif np.max(np.abs(got - G) / tol) * 1e-5 < 0.05:
-            extra = (" This is close: if you use finite differences, your step is too coarse; use a central "
-                     "difference (h(x + δ) − h(x − δ))/(2δ) with δ ≈ 1e-6.")
-        return f"{_jacobian_entries_message(got, G, bad)}.{extra}"
+            extra = (" This is close: if you use finite differences, your step is too coarse (the forward "
+                     "difference's error grows with δ); use a central difference with a small δ"
+                     + hints.formula(", (h(x + δ) − h(x − δ))/(2δ) with δ ≈ 1e-6") + ".")
+        return f"{_jacobian_entries_message(got, G, bad)} (lecture 05 §3).{extra}"
 
     _judge([r[:4] + (close_at(r[4]),) for r in results], close=None, hint=hint)
 
@@ -453,10 +538,11 @@ def _residual_variants(y, y_pred):
         return out
 
     d = raw[1]
-    both = "wrap in both directions: a difference above π gets −2π, one below −π gets +2π"
+    both = ("wrap in both directions (lecture 05 §4)"
+            + hints.formula(": a difference above π gets −2π, one below −π gets +2π"))
     return [
         (raw, "the bearing difference must be wrapped to (−π, π]: across the negative x axis the raw "
-              "difference is nearly 2π"),
+              "difference is nearly 2π (lecture 05 §4)"),
         (-raw, "the residual is measured minus predicted, y − y_pred"),
         (-ekf.radar_residual(y, y_pred), "the residual is measured minus predicted, y − y_pred"),
         (with_bearing(np.mod(d, 2 * np.pi)), "the bearing difference is wrapped into [0, 2π): a small "
@@ -474,7 +560,7 @@ def _residual_variants(y, y_pred):
         (with_bearing(np.pi / 2 - np.mod(np.pi / 2 - d, np.pi)), "the period of an angle is 2π, not π: "
                                                                  "wrap into (−π, π]"),
         (with_bearing(np.arctan(np.tan(d))), "the period of an angle is 2π, not π: arctan(tan(Δφ)) wraps into "
-                                             "(−π/2, π/2); use arctan2(sin Δφ, cos Δφ)"),
+                                             "(−π/2, π/2)" + hints.formula("; use arctan2(sin Δφ, cos Δφ)")),
         (with_bearing(180.0 - np.mod(180.0 - d, 360.0)), "the bearings are in radians: wrap with π, not 180°"),
     ]
 
@@ -494,7 +580,9 @@ def check_radar_residual(radar_residual):
                         f"{y_pred[1]:.3f} rad and measured {y[1]:.3f} rad",
                         functools.partial(_residual_variants, y, y_pred)))
     _judge(results, close=_allclose(1e-7, 1e-9),
-           hint="e = y − y_pred, then wrap e[1] (the bearing) into (−π, π]; leave e[0] and e[2] as they are")
+           hint="the residual is measured minus predicted, with only the bearing's difference wrapped into "
+                "(−π, π] (lecture 05 §4)"
+                + hints.formula(": e = y − y_pred, then wrap e[1]; leave e[0] and e[2] as they are"))
 
 
 @functools.lru_cache(maxsize=None)
@@ -760,22 +848,12 @@ def _inv(A):
     return np.linalg.inv(A)
 
 
-def _with_symmetrised(mistakes):
-    """Each wrong covariance also as the learner would return it after 0.5 (P + Pᵀ)."""
-    out = []
-    for wrong, why in mistakes:
-        wrong = np.asarray(wrong, dtype=float)
-        out.append((wrong, why))
-        if wrong.ndim == 2 and wrong.shape[0] == wrong.shape[1]:
-            out.append((symmetrise(wrong), why))
-    return out
-
-
 def _singular_hint(exc: CheckFailed, what: str) -> CheckFailed:
     """A learner's singular-matrix error, with the likely cause named."""
     if "singular" in str(exc).lower():
-        return CheckFailed(f"{exc}. Hint: {what} is singular only without the measurement noise R: "
-                           "S = G P̌ Gᵀ + R (G P̌ Gᵀ alone has rank ≤ the number of states G sees)")
+        return CheckFailed(f"{exc}. Hint: {what} is singular only without the measurement noise R "
+                           "(G P̌ Gᵀ alone has rank ≤ the number of states G sees; lecture 05 §2)"
+                           + hints.formula(": S = G P̌ Gᵀ + R"))
     return exc
 
 
@@ -792,54 +870,66 @@ def _ekf_mistakes(x_check, P_check, y, g, G, R, residual):
     square = n == m
     with np.errstate(all="ignore"):
         sqrt_R = np.sqrt(R)
+    S_formula = hints.formula(": S = G P̌ Gᵀ + R")
+    K_formula = hints.formula(": K = P̌ Gᵀ S⁻¹")
+    x_formula = hints.formula(": x̂ = x̌ + K (y − g(x̌))")
+    P_formula = hints.formula(": P̂ = (I − K G) P̌")
+    joseph = hints.formula(": (I − K G) P̌ (I − K G)ᵀ + K R Kᵀ")
     gains = [
-        (PGt @ _inv(Gm @ PGt), "S = G P̌ Gᵀ + R: the measurement noise R is missing"),
-        (PGt @ _inv(Gm @ PGt + sqrt_R), "R holds variances (σ²): S = G P̌ Gᵀ + R, you added √R "
-                                                 "(standard deviations)"),
-        (PGt @ _inv(Gm @ PGt + R @ R), "R is already the covariance (σ²): R R squares it again"),
-        (PGt @ _inv(R), "K = P̌ Gᵀ S⁻¹ with S = G P̌ Gᵀ + R; you used R⁻¹ instead of S⁻¹"),
-        (PGt @ S, "K = P̌ Gᵀ S⁻¹: the inverse of S is missing"),
-        (Gm.T @ _inv(S), "K = P̌ Gᵀ S⁻¹: the factor P̌ is missing"),
+        (PGt @ _inv(Gm @ PGt), "the measurement noise R is missing from the innovation covariance (lecture 05 §2)"
+                               + S_formula),
+        (PGt @ _inv(Gm @ PGt + sqrt_R), "R holds variances (σ²): you added √R (standard deviations) to the "
+                                        "innovation covariance (lecture 05 §2)" + S_formula),
+        (PGt @ _inv(Gm @ PGt + R @ R), "R is already the covariance (σ²): R R squares it again" + S_formula),
+        (PGt @ _inv(R), "the gain inverts the innovation covariance S, not R: you used R⁻¹ instead of S⁻¹ "
+                        "(lecture 05 §2)" + K_formula),
+        (PGt @ S, "the gain divides by the innovation covariance: the inverse of S is missing (lecture 05 §2)"
+                  + K_formula),
+        (Gm.T @ _inv(S), "the gain weighs by the prior's covariance: the factor P̌ is missing (lecture 05 §2)"
+                         + K_formula),
         (PGt @ _inv(Gm @ PGt + np.diag(np.diag(R))),
          "R is a full covariance: use all of it, not only its diagonal"),
     ]
     if square:
         gains.append((PGt @ _inv(Gm @ P_check @ Gm + R),
-                      "a transpose is missing: S = G P̌ Gᵀ + R and K = P̌ Gᵀ S⁻¹"))
+                      "a transpose is missing in the innovation covariance (lecture 05 §2)" + S_formula))
     linear = ("the predicted measurement is g(x̌), the nonlinear model; G x̌ is only its linearisation's "
-              "slope times the state")
+              "slope times the state (lecture 05 §2)")
     x_wrong = [
         (x_check, "x̂ is the prior mean x̌ unchanged: the measurement was not used. Correct x̌ by the gain "
                   "times the residual of y, and shrink P̌ (lecture 05 §2)"),
         (x_check + K @ residual(y, Gm @ x_check), linear),
         (x_check + K @ (y - Gm @ x_check), linear),
         (x_check + K @ (y - g(x_check)), "use the residual function you are given, so that angles (bearings, "
-                                         "headings) are wrapped"),
-        (x_check - K @ r, "sign: x̂ = x̌ + K (y − g(x̌)), the residual is measured minus predicted"),
-        (x_check - K @ (y - g(x_check)), "sign: x̂ = x̌ + K (y − g(x̌)), the residual is measured minus "
-                                         "predicted"),
-        (K @ r, "x̂ = x̌ + K r: the prior mean x̌ is missing"),
+                                         "headings) are wrapped (lecture 05 §4)"),
+        (x_check - K @ r, "sign: the correction adds the gain times the residual, measured minus predicted "
+                          "(lecture 05 §2)" + x_formula),
+        (x_check - K @ (y - g(x_check)), "sign: the correction adds the gain times the residual, measured minus "
+                                         "predicted (lecture 05 §2)" + x_formula),
+        (K @ r, "the prior mean x̌ is missing: the update corrects the prior (lecture 05 §2)" + x_formula),
     ]
     x_wrong += [(x_check + Kw @ r, why) for Kw, why in gains]
     if square:
-        x_wrong.append((x_check + K.T @ r, "x̂ = x̌ + K r (K @ r); r @ K multiplies by Kᵀ"))
+        x_wrong.append((x_check + K.T @ r, "the correction is K times the residual (K @ r); r @ K multiplies "
+                                           "by Kᵀ"))
     x_new = x_hat
     P_wrong = [
-        (P_check, "the covariance must shrink: P̂ = (I − K G) P̌; you returned the prior P̌"),
-        (I - K @ Gm, "P̂ = (I − K G) P̌: the product with P̌ is missing"),
-        ((I + K @ Gm) @ P_check, "P̂ = (I − K G) P̌: minus, not plus"),
-        (K @ Gm @ P_check, "P̂ = (I − K G) P̌ = P̌ − K G P̌; you returned K G P̌, the part that is removed"),
-        ((I - K @ Gm) @ P_check @ (I - K @ Gm).T, "the Joseph form is (I − K G) P̌ (I − K G)ᵀ + K R Kᵀ: "
-                                                    "the term K R Kᵀ is missing"),
+        (P_check, "the covariance must shrink: you returned the prior P̌ (lecture 05 §2)" + P_formula),
+        (I - K @ Gm, "the product with P̌ is missing from the covariance update (lecture 05 §2)" + P_formula),
+        ((I + K @ Gm) @ P_check, "the covariance update subtracts what the measurement taught: minus, not plus "
+                                 "(lecture 05 §2)" + P_formula),
+        (K @ Gm @ P_check, "you returned K G P̌, the part that is removed from P̌ (lecture 05 §2)"
+                           + hints.formula(": P̂ = (I − K G) P̌ = P̌ − K G P̌")),
+        ((I - K @ Gm) @ P_check @ (I - K @ Gm).T, "the Joseph form's term K R Kᵀ is missing" + joseph),
         ((I - K @ Gm) @ P_check @ (I - K @ Gm).T + K @ sqrt_R @ K.T,
          "the Joseph form adds K R Kᵀ with R the covariance (σ²), not √R"),
         ((I - K @ G(x_new)) @ P_check, "G is evaluated at the prior mean x̌ (the linearisation point), "
                                        "not at the updated x̂"),
     ]
     if square:
-        P_wrong += [(P_check - K @ S @ K, "P̂ = P̌ − K S Kᵀ: a transpose is missing"),
-                    ((I - Gm @ K) @ P_check, "P̂ = (I − K G) P̌: the product is K G (n × n), not G K")]
-    return x_wrong, _with_symmetrised(P_wrong)
+        P_wrong += [(P_check - K @ S @ K, "a transpose is missing in P̌ − K S Kᵀ"),
+                    ((I - Gm @ K) @ P_check, "the product is K G (n × n), not G K (lecture 05 §2)" + P_formula)]
+    return x_wrong, with_symmetrised(P_wrong)
 
 
 @functools.lru_cache(maxsize=None)
@@ -881,8 +971,10 @@ def check_ekf_update(ekf_update):
         xs.append((x_hat, ref.x_hat, f"x_hat (n = {n} states, m = {m} measurements)", lambda f=mistakes: f()[0]))
         Ps.append((P_hat, ref.P_hat, f"P_hat (n = {n}, m = {m})", lambda f=mistakes: f()[1]))
     _judge(xs, close=_allclose(1e-7, 1e-8),
-           hint="x̂ = x̌ + K r(y, g(x̌)) with K = P̌ Gᵀ (G P̌ Gᵀ + R)⁻¹ and G evaluated at x̌")
-    _judge(Ps, close=_allclose(1e-6, 1e-10), hint="P̂ = (I − K G) P̌")
+           hint="the EKF's mean update, the gain times the wrapped residual of the nonlinear model, with G at x̌ "
+                "(lecture 05 §2)" + hints.formula(": x̂ = x̌ + K r(y, g(x̌)) with K = P̌ Gᵀ (G P̌ Gᵀ + R)⁻¹"))
+    _judge(Ps, close=_allclose(1e-6, 1e-10), hint="the covariance shrinks by what the measurement taught "
+                                                  "(lecture 05 §2)" + hints.formula(": P̂ = (I − K G) P̌"))
     for P_hat, *_ in Ps:
         expect_symmetric(P_hat, "P_hat")
     if pending is not None:
@@ -913,21 +1005,24 @@ def _mean_step_mistakes(x_check, P_check, x_op, y, g, G, R, residual):
     d = x_check - x_op
     with np.errstate(all="ignore"):
         sqrt_R = np.sqrt(R)
+    step = hints.formula(": x_{i+1} = x̌ + K (r − G (x̌ − x_op))")
+    gain_i = hints.formula(": K_i = P̌ G_iᵀ (G_i P̌ G_iᵀ + R)⁻¹")
     return [
         (x_check + K0 @ residual(y, g(x_check)), "your step does not depend on x_op: it is the EKF's step, with g "
                                                  "linearised at the prior mean x̌. The IEKF linearises g at the "
                                                  "operating point x_op (g(x_op) and G(x_op)), and corrects for x̌ "
-                                                 "not being that point"),
-        (x_op + K @ r, "the step starts from the prior: x_{i+1} = x̌ + K (r − G (x̌ − x_op)); "
-                       "the linearisation point only enters through g(x_op) and G"),
-        (x_op + K @ (r - Gm @ d), "the step starts from the prior x̌, not from x_op: "
-                                  "x_{i+1} = x̌ + K (r − G (x̌ − x_op))"),
-        (x_check + K @ (r + Gm @ d), "sign: g(x) ≈ g(x_op) + G (x − x_op), so the correction is − G (x̌ − x_op)"),
-        (x_check + K @ r, "the term − G (x̌ − x_op) is missing; it vanishes only at the first iteration"),
+                                                 "not being that point (lecture 06 §1)"),
+        (x_op + K @ r, "the step starts from the prior; the linearisation point only enters through g(x_op) and G "
+                       "(lecture 06 §1)" + step),
+        (x_op + K @ (r - Gm @ d), "the step starts from the prior x̌, not from x_op (lecture 06 §1)" + step),
+        (x_check + K @ (r + Gm @ d), "sign of the correction for x̌ not being x_op: g(x) ≈ g(x_op) + G (x − x_op) "
+                                     "(lecture 06 §1)" + hints.formula(", so the correction is − G (x̌ − x_op)")),
+        (x_check + K @ r, "the correction for x̌ not being the linearisation point is missing; it vanishes only at "
+                          "the first iteration (lecture 06 §1)" + hints.formula(": − G (x̌ − x_op)")),
         (x_check + K @ (r - Gm @ x_check), "the correction is − G (x̌ − x_op), the prior's offset from the "
                                            "linearisation point, not G x̌"),
-        (x_check + K0 @ (r - Gm @ d), "the gain K_i = P̌ G_iᵀ (G_i P̌ G_iᵀ + R)⁻¹ uses G at the linearisation "
-                                      "point x_op, not at x̌"),
+        (x_check + K0 @ (r - Gm @ d), "the gain K_i uses G at the linearisation point x_op, not at x̌ "
+                                      "(lecture 06 §1)" + gain_i),
         (x_check + K0 @ (r - G0 @ d), "G is re-evaluated at each iterate: G(x_op), not G(x̌) (which gives "
                                       "back the EKF)"),
         (x_check + K @ (residual(y, g(x_check)) - Gm @ d), "the residual is taken at the linearisation point: "
@@ -936,9 +1031,11 @@ def _mean_step_mistakes(x_check, P_check, x_op, y, g, G, R, residual):
                                                  "(bearings, headings) are wrapped"),
         (x_check + K @ (-r - Gm @ d), "the residual is measured minus predicted: r = y − g(x_op)"),
         (x_check + _gain_at(P_check, Gm, 0 * R) @ (r - Gm @ d),
-         "K_i = P̌ G_iᵀ (G_i P̌ G_iᵀ + R)⁻¹: the measurement noise R is missing"),
+         "the measurement noise R is missing from the gain (lecture 06 §1)" + gain_i),
         (x_check + _gain_at(P_check, Gm, sqrt_R) @ (r - Gm @ d),
-         "R holds variances (σ²): G P̌ Gᵀ + R, not + √R"),
+         "R holds variances (σ²): you added √R to G P̌ Gᵀ (lecture 06 §1)" + gain_i),
+        (x_check + (P_check @ Gm.T @ _inv(R)) @ (r - Gm @ d),
+         "the gain inverts G P̌ Gᵀ + R, not R: you used R⁻¹ instead of S⁻¹ (lecture 06 §1)" + gain_i),
     ]
 
 
@@ -950,7 +1047,9 @@ def _mean_step_references(k: int):
     x1 = _iekf_step_reference(x_check, P_check, x_check, y, g, G, R, residual)[0]
     x_off = x1 + 0.5 * np.sqrt(np.diag(P_check))
     return tuple((x_op, where, _iekf_step_reference(x_check, P_check, x_op, y, g, G, R, residual)[0])
-                 for x_op, where in ((x_check, "at the first iteration (x_op = x̌)"),
+                 # x_op = x̌ as a copy: the learner's two arguments must be two arrays, here as when the
+                 # check runs from outside the kernel, so that one written in place is named as itself
+                 for x_op, where in ((x_check.copy(), "at the first iteration (x_op = x̌)"),
                                      (x1, "at the second iteration (x_op ≠ x̌)"),
                                      (x_off, "at x_op away from x̌ and from the first iterate")))
 
@@ -981,7 +1080,9 @@ def check_iekf_mean_step(iekf_mean_step):
             results.append((got, expected, f"the iterate {where} (n = {n}, m = {len(y)})",
                             functools.partial(_mean_step_mistakes, x_check, P_check, x_op, y, g, G, R, residual)))
     _judge(results, close=_allclose(1e-7, 1e-8),
-           hint="x_{i+1} = x̌ + K_i (r(y, g(x_i)) − G_i (x̌ − x_i)), with G_i and K_i at x_i")
+           hint="the IEKF's mean step linearises g at x_i and corrects the prior for not being that point, with "
+                "G_i and K_i at x_i (lecture 06 §1)"
+                + hints.formula(": x_{i+1} = x̌ + K_i (r(y, g(x_i)) − G_i (x̌ − x_i))"))
     if pending is not None:
         raise pending
 
@@ -1017,9 +1118,10 @@ def _iekf_mistakes(x_check, P_check, y, g, G, R, residual, tol, max_iter):
         x_check, P_check, y, g, G, R, residual=residual, tol=tol, max_iter=ref.iterations - 1).x_hat
     G_new = G(ref.x_hat)
     P_at_new = short_update(P_check, _gain_at(P_check, G_new, R), G_new @ P_check)
-    loop = "only the mean iterates: form P̂ = (I − K G) P̌ once, after the loop, from the prior P̌"
+    loop = ("only the mean iterates: form the covariance once, after the loop, from the prior P̌ (lecture 06 §1)"
+            + hints.formula(": P̂ = (I − K G) P̌"))
     x_wrong = [(x_ekf, "your x̂ is the EKF's (one linearisation, at x̌): linearise again at each new iterate "
-                       "x_op (pass it as x_op to the mean step) until the step is ≤ tol"),
+                       "x_op (pass it as x_op to the mean step) until the step is ≤ tol (lecture 06 §1)"),
                (x_loop, loop),
                (x_walk, "each step starts from the prior x̌ (iekf_mean_step(x_check, P_check, x_op, ...)); "
                         "passing the iterate as the prior walks away from it"),
@@ -1027,11 +1129,10 @@ def _iekf_mistakes(x_check, P_check, y, g, G, R, residual, tol, max_iter):
                             "where the last linearisation was made")]
     P_wrong = [(at_prior, "the final covariance uses K and G of the last linearisation, not those at x̌"),
                (P_loop, loop), (P_loop_after, loop),
-               (P_check, "the covariance must shrink: P̂ = (I − K G) P̌ after the loop"),
-               (P_at_new, "P̂ = (I − K G) P̌ with K and G of the last linearisation point x_i (the x_op "
-                          "of the last mean step), not G at the new iterate: they differ when the loop stops "
-                          "at max_iter")]
-    return x_wrong, _with_symmetrised(P_wrong)
+               (P_check, "the covariance must shrink after the loop (lecture 06 §1)" + hints.formula(": P̂ = (I − K G) P̌")),
+               (P_at_new, "the covariance takes K and G of the last linearisation point x_i (the x_op of the last "
+                          "mean step), not G at the new iterate: they differ when the loop stops at max_iter")]
+    return x_wrong, with_symmetrised(P_wrong)
 
 
 @functools.lru_cache(maxsize=None)
@@ -1076,7 +1177,8 @@ def check_iekf_update(iekf_update):
             except CheckFailed as exc:
                 if max_iter < 20:
                     raise CheckFailed(f"with max_iter = {max_iter}: {exc}. Hint: the loop must linearise at least "
-                                      "once and at most max_iter times (for i in range(1, max_iter + 1))") from None
+                                      "once and at most max_iter times"
+                                      + hints.formula(" (for i in range(1, max_iter + 1))")) from None
                 raise _singular_hint(exc, "G P̌ Gᵀ + R") from None
             result = _sequence(result, "iekf_update", 3, "(x_hat, P_hat, iterations)")
             x_hat = expect_shape(result[0], (n,), f"x_hat ({setting})")
@@ -1098,9 +1200,11 @@ def check_iekf_update(iekf_update):
             xs.append((x_hat, ref.x_hat, f"x_hat ({setting})", lambda f=mistakes: f()[0], one))
             Ps.append((P_hat, ref.P_hat, f"P_hat ({setting})", lambda f=mistakes: f()[1], one))
         counts.append((count, ref.iterations, tol, max_iter, setting))
-    for results, close, hint in ((xs, _allclose(1e-6, 1e-7), "iterate x_op ← x̌ + K (r(y, g(x_op)) − G (x̌ − x_op)) "
-                                  "until the step is ≤ tol"),
-                                 (Ps, _allclose(1e-5, 1e-9), "P̂ = (I − K G) P̌ with K, G at the last iterate")):
+    for results, close, hint in ((xs, _allclose(1e-6, 1e-7), "iterate the mean step, relinearising at each new "
+                                  "iterate, until the step is ≤ tol (lecture 06 §1)"
+                                  + hints.formula(": x_op ← x̌ + K (r(y, g(x_op)) − G (x̌ − x_op))")),
+                                 (Ps, _allclose(1e-5, 1e-9), "the covariance, once, with K and G at the last "
+                                  "linearisation point (lecture 06 §1)" + hints.formula(": P̂ = (I − K G) P̌"))):
         _judge([r[:4] for r in results], close=close,
                hint=lambda k, results=results, hint=hint: results[k][4] or hint)
     for count, expected, tol, max_iter, setting in counts:
@@ -1121,7 +1225,8 @@ def check_iekf_update(iekf_update):
             why = "count one per linearisation: the first step (at x̌) is iteration 1"
         else:
             why = "count one per linearisation and stop as soon as max |x_{i+1} − x_i| <= tol"
-        raise CheckFailed(f"iterations is {count} ({setting}), the reference needs {expected}: {why}")
+        raise CheckFailed(f"iterations is {count} ({setting}), the reference needs {expected}. Hint: {why} "
+                          "(lecture 06 §1)")
     if pending is not None:
         raise pending
 
@@ -1190,12 +1295,12 @@ def _convergence_mistakes(x_next, x_op, P, tol):
     in_P = float(np.sqrt(step @ P @ step))
     units = ("your test measures the step in the state's own units (metres, m/s, rad mixed), whatever the "
              "prior knows about each component: measure it in prior standard deviations, as the Mahalanobis "
-             "distance under P̌ (lecture 02 §1)")
+             "distance under P̌ (lecture 02 §1)" + hints.formula(", √(Δxᵀ P̌⁻¹ Δx)"))
     diagonal = ("your test divides each component by its standard deviation but ignores the correlations of "
                 "P̌: a step against the correlation is far less likely than its components say; use the whole "
-                "P̌ (its inverse, P̌⁻¹)")
+                "P̌" + hints.formula(" (its inverse, P̌⁻¹)"))
     weighted = ("your test weighs the step by P̌ instead of its inverse: a step in a direction the prior knows "
-                "well must count more, not less (d² = Δxᵀ P̌⁻¹ Δx)")
+                "well must count more, not less" + hints.formula(" (d² = Δxᵀ P̌⁻¹ Δx)"))
     return [
         (np.max(np.abs(step)) <= tol, units),
         (np.linalg.norm(step) <= tol, units),
@@ -1237,5 +1342,5 @@ def check_iekf_converged(iekf_converged):
                         f"the verdict ({bool(value)}) for step {k + 1}, a step {what} (n = {len(x_op)}, "
                         f"tol = {tol:g})", lambda mistakes=mistakes: mistakes))
     _judge(results, close=lambda a, b: bool(a == b),
-           hint="stop when the Mahalanobis length of the step under the prior, √(Δxᵀ P̌⁻¹ Δx), is at most "
-                "tol")
+           hint="stop when the Mahalanobis length of the step under the prior is at most tol (lecture 02 §1)"
+                + hints.formula(": √(Δxᵀ P̌⁻¹ Δx) ≤ tol"))

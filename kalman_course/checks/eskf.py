@@ -22,6 +22,14 @@ around the course's and the GNSS σ on both sides of 1 m), the sub-optimal gain'
 reset's δx̂ (three sizes, |δθ̂| ≤ 0.09 rad); and the quaternion pairs of the nominal-state
 EKF (attitudes at 0, in the middle and 10⁻³ … 3·10⁻² rad short of π, and a pair across π).
 
+The discretisation is also swept over steps from 1e-6 to 10 s (T = 1 s left out, where T, √T
+and T² coincide). Sign choices that leave B Q Bᵀ unchanged (a noise column negated, in B_t or
+in the discretised B) are accepted: −n has the covariance of n, and the filter uses B only in
+B Q Bᵀ. The run's diagnosis tries R built with wrong units first (the attitude σ in degrees,
+converted twice, a variance converted with one factor, σ for σ²: that section's own task),
+comparing the first two updates before rebuilding a whole run. Hints come in tiers
+(:mod:`hints`), and a result in single precision is named before its values are compared.
+
 The exercise's whole-step placeholders are recognised and named: a covariance returned
 unpropagated, a nominal state returned uninjected, a run that never uses its lidar poses, and
 (in the optional challenge) a finite-difference Jacobian left at zero. The accelerometer noise
@@ -61,8 +69,9 @@ from kalman_course.core import so3
 from kalman_course.core.linalg import expm, symmetrise
 from kalman_course.evaluation.metrics import position_rmse
 from kalman_course.checks import cases as inputs
+from kalman_course.checks import hints
 from kalman_course.checks.harness import CheckFailed, call, check, expect_close, expect_shape, expect_symmetric
-from kalman_course.checks.harness import learner_namespace, upstream_failure
+from kalman_course.checks.harness import known_mistake, learner_namespace, upstream_failure
 from kalman_course.data import TruthData, load_kitti, simulate_lidar_poses
 from kalman_course.filters.eskf import NominalState
 from kalman_course.filters.eskf_config import load_config
@@ -153,8 +162,47 @@ def _close(a, b, atol, rtol=0.0) -> bool:
     return a.shape == b.shape and bool(np.allclose(a, b, rtol=rtol, atol=atol))
 
 
+def _narrow_floats(value, depth: int = 0):
+    """The floating dtypes narrower than float64 in a result (arrays, tuples, state fields)."""
+    if depth > 3:
+        return
+    if isinstance(value, (np.ndarray, np.generic)) and value.dtype.kind in "fc" \
+            and value.dtype.itemsize < (8 if value.dtype.kind == "f" else 16):
+        yield value.dtype.name
+    elif isinstance(value, (tuple, list)):
+        for item in value:
+            yield from _narrow_floats(item, depth + 1)
+    elif dataclasses.is_dataclass(value) and not isinstance(value, type):
+        for field in dataclasses.fields(value):
+            yield from _narrow_floats(getattr(value, field.name), depth + 1)
+
+
+def _expect_double(value, what: str) -> None:
+    """Fail on a result in single precision before its values are compared: the tolerances
+    (1e-10 … 1e-15) are far below float32's rounding (about 6e-8 relative), so the value
+    comparison would report a wrong number instead of the cause."""
+    narrow = next(_narrow_floats(value), None)
+    if narrow is not None:
+        raise CheckFailed(f"{what} is {narrow}: it was computed in single precision. Hint: keep NumPy's "
+                          "default float64 (no .astype(np.float32), no dtype=np.float32); float32 keeps about "
+                          "7 digits, and a filter's covariance loses more than that in a few steps")
+
+
+def _same_up_to_column_signs(got, ref, atol: float) -> bool:
+    """Whether each column of ``got`` is the same column of ``ref`` or its negative."""
+    got, ref = np.asarray(got, dtype=float), np.asarray(ref, dtype=float)
+    if got.shape != ref.shape or got.ndim != 2:
+        return False
+    if got.size == 0:
+        return True
+    same = np.abs(got - ref).max(axis=0) <= atol          # column by column, as np.allclose(rtol=0)
+    flipped = np.abs(got + ref).max(axis=0) <= atol
+    return bool(np.all(same | flipped))
+
+
 def _expect_blocks(got, ref, rows, cols, what: str, formulas: dict, alternatives: dict,
-                   atol: float = 1e-10, fallback: str = "") -> None:
+                   atol: float = 1e-10, fallback: str = "", section: str = "lecture 08 §1",
+                   column_signs_free: bool = False) -> None:
     """Fail naming the first wrong block of the block matrix ``got`` (and the mistake, if known).
 
     Parameters
@@ -166,43 +214,56 @@ def _expect_blocks(got, ref, rows, cols, what: str, formulas: dict, alternatives
     what : str
         Name of the matrix in messages (``F_t``).
     formulas : dict
-        ``{(row, col): "−R[a]×"}``: what each non-zero block should be.
+        ``{(row, col): "−R[a]×"}``: what each non-zero block should be (shown at hint tier 2).
     alternatives : dict
         ``{(row, col): [(wrong block, hint), ...]}``: known wrong values of one block.
     atol : float
         Absolute tolerance per entry (the blocks are O(1) … O(10)).
     fallback : str
         Added to the message of a wrong block that matches no known mistake.
+    section : str
+        Where the lecture derives the blocks, for the hints.
+    column_signs_free : bool
+        Take a block whose columns equal the reference's up to their signs as right (a noise
+        Jacobian: see :func:`check_eskf_noise_jacobian`).
     """
+    same = (lambda g, e: _same_up_to_column_signs(g, e, atol)) if column_signs_free else \
+        (lambda g, e: _close(g, e, atol))
     for rname, r0, r1 in rows:
         for cname, c0, c1 in cols:
             g, e = got[r0:r1, c0:c1], ref[r0:r1, c0:c1]
-            if _close(g, e, atol):
+            if same(g, e):
                 continue
             where = f"the ({rname}, {cname}) block of {what} (rows {r0}:{r1}, columns {c0}:{c1})"
             formula = formulas.get((rname, cname), "0")
-            for wrong, why in alternatives.get((rname, cname), ()):
-                if _close(g, wrong, atol):
-                    raise CheckFailed(f"{where} is wrong. Hint: {why}")
+            should_be = hints.formula(f"; it should be {formula}")
+            why = known_mistake([g], [None], alternatives.get((rname, cname), ()),
+                                close=lambda mine, wrong, _: wrong is not None and same(mine, wrong),
+                                evaluate=lambda wrong, _: wrong)
+            if why:
+                raise CheckFailed(f"{where} is wrong. Hint: {why}")
             if not e.any():
                 raise CheckFailed(f"{where} should be zero: nothing in this model couples {rname} to {cname} "
-                                  f"(a block put in the wrong place? check the row and column ranges)")
+                                  f"(a block put in the wrong place? check the row and column ranges; {section})")
             if not g.any():
                 elsewhere = [f"rows {q0}:{q1}, columns {d0}:{d1}" for _, q0, q1 in rows for _, d0, d1 in cols
                              if (q0, d0) != (r0, c0) and got[q0:q1, d0:d1].shape == e.shape
-                             and not ref[q0:q1, d0:d1].any() and _close(got[q0:q1, d0:d1], e, atol)]
+                             and not ref[q0:q1, d0:d1].any() and same(got[q0:q1, d0:d1], e)]
                 if elsewhere:
-                    raise CheckFailed(f"{where} is missing: its value {formula} was put in the wrong place "
-                                      f"({elsewhere[0]}); rows are the derivative, columns the variable")
-                raise CheckFailed(f"{where} is missing (all zeros); it should be {formula}")
+                    raise CheckFailed(f"{where} is missing: its value was put in the wrong place "
+                                      f"({elsewhere[0]}). Hint: rows are the derivative, columns the variable "
+                                      f"({section})" + should_be)
+                raise CheckFailed(f"{where} is missing (all zeros). Hint: {rname} depends on {cname} ({section})"
+                                  + should_be)
             if _close(g, -e, atol):
-                raise CheckFailed(f"{where} has the wrong sign: it is {formula}")
-            if g.shape[0] == g.shape[1] and _close(g, e.T, atol):
-                raise CheckFailed(f"{where} is transposed: it is {formula} (R = R_nb maps body to "
-                                  f"navigation; Rᵀ maps back)")
+                raise CheckFailed(f"{where} has the wrong sign. Hint: the error is nominal − true, and each sign "
+                                  f"follows from it ({section})" + should_be)
+            if g.shape[0] == g.shape[1] and same(g, e.T):
+                raise CheckFailed(f"{where} is transposed. Hint: R = R_nb maps body to navigation, Rᵀ maps back "
+                                  f"({section})" + should_be)
             err = np.abs(g - e).max()
-            raise CheckFailed(f"{where} differs from the reference (max abs error {err:.3g}); it should be "
-                              f"{formula}." + (f" {fallback}" if fallback else ""))
+            raise CheckFailed(f"{where} differs from the reference (max abs error {err:.3g}) ({section})"
+                              + hints.formula(f"; it should be {formula}.") + (f" {fallback}" if fallback else ""))
 
 
 _F_FORMULAS = {("δp", "δv"): "I", ("δv", "δθ"): "−R[a]× with a = f − b_a (body frame)",
@@ -215,32 +276,45 @@ def check_eskf_error_dynamics(error_dynamics):
     g = np.array([0.0, 0.0, -9.8092])
     for x, f, w in _cases():
         R, b_a, b_w = x.rotation, x.accel_bias, x.gyro_bias
-        got = expect_shape(call(error_dynamics, R, f, w, b_a, b_w), (15, 15), "F_t")
+        value = call(error_dynamics, R, f, w, b_a, b_w)
+        _expect_double(value, "F_t")
+        got = expect_shape(value, (15, 15), "F_t")
         ref = eskf.error_dynamics(R, f, w, b_a, b_w)
         if _close(got, ref, 1e-10):
             continue
         a, hat = f - b_a, so3.hat
+        F = hints.formula
         alternatives = {
             ("δv", "δθ"): [
-                (-hat(R @ a), "navigation-frame specific force: the δv–δθ block is −R[a]× with a = f − b_a "
-                              "in the BODY frame, not −[R a]×"),
-                (-R @ hat(f), "use the bias-corrected specific force a = f − b_a inside [a]×"),
-                (-R @ hat(f + b_a), "the bias is subtracted from the reading: a = f − b_a, not f + b_a"),
-                (-R.T @ hat(a), "transpose: R = R_nb maps the body-frame force to navigation, so −R[a]×, "
-                                "not −Rᵀ[a]×"),
-                (-hat(a) @ R, "order of the product: −R[a]× (rotate after the cross product), not −[a]× R"),
-                (hat(R @ a), "sign and frame: −R[a]× in the BODY frame, not +[R a]×"),
+                (-hat(R @ a), "navigation-frame specific force: the δv–δθ block takes the bias-corrected "
+                              "specific force in the BODY frame, and rotates after the cross product (lecture "
+                              "08 §1)" + F(": −R[a]× with a = f − b_a, not −[R a]×")),
+                (-R @ hat(f), "use the bias-corrected specific force inside the cross product (lecture 08 §1)"
+                              + F(": a = f − b_a in −R[a]×")),
+                (-R @ hat(f + b_a), "the bias is subtracted from the reading, not added (lecture 08 §1)"
+                                    + F(": a = f − b_a, not f + b_a")),
+                (-R.T @ hat(a), "transpose: R = R_nb maps the body-frame force to navigation (lecture 08 §1)"
+                                + F(", so −R[a]×, not −Rᵀ[a]×")),
+                (-hat(a) @ R, "order of the product: rotate after the cross product (lecture 08 §1)"
+                              + F(": −R[a]×, not −[a]× R")),
+                (hat(R @ a), "sign and frame: the specific force is taken in the BODY frame, and the block "
+                             "has a minus sign (lecture 08 §1)" + F(": −R[a]×, not +[R a]×")),
             ],
             ("δv", "δb_a"): [
-                (-np.eye(3), "the accelerometer bias is a BODY-frame error: it enters δv̇ rotated, −R δb_a"),
-                (-R.T, "transpose: the δv–δb_a block is −R (R = R_nb), not −Rᵀ"),
+                (-np.eye(3), "the accelerometer bias is a BODY-frame error: it enters δv̇ rotated into the "
+                             "navigation frame (lecture 08 §1)" + F(": −R δb_a")),
+                (-R.T, "transpose: R = R_nb maps body to navigation (lecture 08 §1)" + F(": the δv–δb_a block "
+                                                                                       "is −R, not −Rᵀ")),
             ],
             ("δθ", "δθ"): [
-                (-hat(w), "use the bias-corrected angular rate: −[ω − b_ω]×"),
-                (-hat(w + b_w), "the bias is subtracted from the reading: −[ω − b_ω]×, not −[ω + b_ω]×"),
-                (-R @ hat(w - b_w), "δθ is a body-frame error: the δθ–δθ block is −[ω − b_ω]×, not rotated by R"),
+                (-hat(w), "use the bias-corrected angular rate (lecture 08 §1)" + F(": −[ω − b_ω]×")),
+                (-hat(w + b_w), "the bias is subtracted from the reading, not added (lecture 08 §1)"
+                                + F(": −[ω − b_ω]×, not −[ω + b_ω]×")),
+                (-R @ hat(w - b_w), "δθ is a body-frame error: its own block is not rotated by R (lecture 08 §1)"
+                                    + F(": −[ω − b_ω]×")),
             ],
-            ("δθ", "δb_ω"): [(-R, "the gyro bias and δθ are both in the body frame: the block is −I, not −R")],
+            ("δθ", "δb_ω"): [(-R, "the gyro bias and δθ are both in the body frame: nothing rotates between "
+                                  "them (lecture 08 §1)" + F(": the block is −I, not −R"))],
         }
         T = 1e-3
         J = _fd_transition(x, f, w, T, g)
@@ -272,86 +346,140 @@ def _accel_noise_effect(block, R) -> str:
             f"rotated (tilted by {tilt:.0f}°)")
 
 
+#: Variances (one per noise column, all different) under which B Q Bᵀ is compared: the filter
+#: uses B_t only through B Q Bᵀ (after discretisation, which scales columns), and with a
+#: different variance on every column, B' Q B'ᵀ = B Q Bᵀ holds for B' = B diag(±1), a sign
+#: choice per column, but not for a column rotated, permuted, moved or left out.
+_COLUMN_VARIANCES = np.array([4.0, 9.0, 81.0, 1.0, 2.0, 3.0, 5.0, 6.0, 7.0, 11.0, 13.0, 17.0]) * 1e-4
+
+
+def _noise_effect(B, cols: int) -> np.ndarray:
+    """B diag(_COLUMN_VARIANCES) Bᵀ: what the filter does with a noise Jacobian."""
+    B = np.asarray(B, dtype=float)
+    return (B * _COLUMN_VARIANCES[:cols]) @ B.T
+
+
 @check
 def check_eskf_noise_jacobian(noise_jacobian):
-    """``noise_jacobian(R, bias_model)`` returns B_t (15, 12) or (15, 6)."""
+    """``noise_jacobian(R, bias_model)`` returns B_t (15, 12) or (15, 6).
+
+    Accepted besides the lecture's B_t: any sign of each noise column. The noise is zero-mean
+    and symmetric, so −n has the covariance of n (lecture 08 §4); the filter uses B_t only in
+    B Q Bᵀ, which a sign choice leaves unchanged (compared with :data:`_COLUMN_VARIANCES`).
+    """
     for x, _, _ in _cases():
         R = x.rotation
         for model, cols in (("random_walk", 12), ("constant", 6)):
             what = f"B_t ({model} bias)"
             value = call(noise_jacobian, R, model)
+            _expect_double(value, what)
             if np.shape(value) == (15, 12) and cols == 6:
                 raise CheckFailed(f"{what} has shape (15, 12), expected (15, 6): the constant-bias model "
-                                  "(δḃ = 0) has no bias-noise columns, only n_a and n_ω")
+                                  "(δḃ = 0) has no bias-noise columns, only n_a and n_ω (lecture 08 §6)")
             got = expect_shape(value, (15, cols), what)
             ref = eskf.noise_jacobian(R, model)
-            if _close(got, ref, 1e-12):
-                continue
+            if _close(got, ref, 1e-12) or _close(_noise_effect(got, cols), _noise_effect(ref, cols), 1e-15, 1e-12):
+                continue       # the lecture's B_t, or one with other signs of its columns
             alternatives = {
                 ("δv", "n_a"): [
-                    (np.eye(3), "n_a is accelerometer noise in the BODY frame; it enters δv̇ rotated: R n_a. "
+                    (np.eye(3), "n_a is accelerometer noise in the BODY frame; it enters δv̇ rotated "
+                                "(lecture 08 §1): " + hints.formula("R n_a") + ". "
                                 + _accel_noise_effect(np.eye(3), R)),
-                    (R.T, "transpose: n_a enters δv̇ as R n_a (R = R_nb), not Rᵀ n_a. "
-                          + _accel_noise_effect(R.T, R)),
-                    (-R, "sign: with error = nominal − true and f_m = f + n_a, δv̇ = … + R n_a (the lecture's "
-                         "B_t has +R)"),
+                    (R.T, "transpose: R = R_nb maps body to navigation, so the body-frame n_a enters δv̇ "
+                          "through R, not Rᵀ (lecture 08 §1). " + _accel_noise_effect(R.T, R)),
                 ],
                 ("δθ", "n_ω"): [
-                    (R, "δθ is a body-frame error and n_ω a body-frame noise: the block is I, not R"),
-                    (-np.eye(3), "sign: δθ̇ = … + n_ω (the lecture's B_t has +I)"),
+                    (R, "δθ is a body-frame error and n_ω a body-frame noise: nothing rotates between them "
+                        "(lecture 08 §1), " + hints.formula("the block is I, not R")),
+                    (R.T, "δθ is a body-frame error and n_ω a body-frame noise: nothing rotates between them "
+                          "(lecture 08 §1), " + hints.formula("the block is I, not Rᵀ")),
                 ],
             }
             _expect_blocks(got, ref, _ERR, _NOISE[:cols // 3], what, _B_FORMULAS, alternatives, atol=1e-12,
                            fallback="columns n_a, n_ω, n_ba, n_bω; rows δp, δv, δθ, δb_a, δb_ω "
-                                    "(the constant-bias model has no bias columns)")
+                                    "(the constant-bias model has no bias columns)",
+                           section="lecture 08 §1", column_signs_free=True)
+
+
+#: Steps (s) of the discretisation's sweep (random-walk model, the first state), from far below
+#: an IMU's interval to a GNSS outage's seconds (T = 1 s is left out: there T, √T and T²
+#: coincide, and so would the scaling mistakes). Four calls: the check's time stays within
+#: 1.5 times what it was without them.
+_SWEPT_STEPS = (1e-6, 1e-3, 0.3, 10.0)
+
+
+@functools.lru_cache(maxsize=None)
+def _swept_steps() -> tuple:
+    """The sweep's steps: :data:`_SWEPT_STEPS`, each moved by up to 25 % under a run seed."""
+    rng = inputs.rng("eskf.discretisation.sweep", 5)
+    factors = inputs.log_uniform(rng, 0.8, 1.25, len(_SWEPT_STEPS)) if inputs.drawing() else np.ones(len(_SWEPT_STEPS))
+    return tuple(float(T * k) for T, k in zip(_SWEPT_STEPS, factors))
+
+
+def _white_and_walk_mistakes(s: float, T: float, random_walk: bool):
+    """(wrong σ² T of a diagonal block of B Q Bᵀ, hint) for the scaling mistakes of B's columns."""
+    if random_walk:
+        return [(s * s * T * T, "T where √T belongs: a random walk's variance grows with T, so its column of B "
+                                "scales with √T (lecture 08 §3)"),
+                (s * s, "the random-walk column of B must be scaled by √T (lecture 08 §3)"),
+                (s * s / T, "the random-walk column of B is multiplied by √T, not divided (lecture 08 §3)")]
+    return [(s * s, "√T where T belongs: with the per-sample variance σ²/T in Q, a white-noise column of B "
+                    "scales with T (lecture 08 §3)"),
+            (s * s / T, "the white-noise column of B must be scaled by T (lecture 08 §3)"),
+            (s * s * T ** 3, "the white-noise column of B is scaled by T, not T² (lecture 08 §3)"),
+            (s * s / T ** 3, "the white-noise column of B is multiplied by T, not divided (lecture 08 §3)")]
 
 
 @check
 def check_eskf_discretisation(discretise):
-    """``discretise(F_t, B_t, T)`` returns (F, B); checked through the blocks of B Q Bᵀ."""
+    """``discretise(F_t, B_t, T)`` returns (F, B); checked through the blocks of B Q Bᵀ.
+
+    Steps: the cases' own (about an IMU interval), then a sweep over :data:`_SWEPT_STEPS` on
+    the first state. B is accepted with any sign of each column (the filter uses it only in
+    B Q Bᵀ, see :func:`check_eskf_noise_jacobian`).
+    """
+    first = True
     for x, f, w in _cases():
         F_t = eskf.error_dynamics(x.rotation, f, w, x.accel_bias, x.gyro_bias)
         for model in ("random_walk", "constant"):
             B_t = eskf.noise_jacobian(x.rotation, model)
-            for T in _steps()[0 if model == "random_walk" else 1]:
+            own = _steps()[0 if model == "random_walk" else 1]
+            for T in own + (_swept_steps() if first and model == "random_walk" else ()):
                 result = call(discretise, F_t, B_t, T)
                 if not isinstance(result, (tuple, list)) or len(result) != 2:
                     raise CheckFailed("discretise must return a tuple (F, B)")
+                _expect_double(result, f"(F, B) for T = {T:g}")
                 F_ref, B_ref = eskf.discretise(F_t, B_t, T)
                 I = np.eye(15)
-                F_got = expect_shape(result[0], F_ref.shape, f"F for T = {T}")
-                if not _close(F_got, F_ref, 1e-12):   # the mistakes (expm: 0.1 ms each) only on failure
-                    expect_close(F_got, F_ref, f"F for T = {T}", atol=1e-12, mistakes=[
-                        (F_t * T, "F = I + F_t T: the identity is missing"),
-                        (I + F_t, "F = I + F_t T: F_t must be multiplied by the step T"),
-                        (I - F_t * T, "sign: F = I + F_t T (δx_k ≈ δx_{k−1} + δẋ T)"),
-                        (I + F_t * T * T, "F = I + F_t T: T, not T²"),
+                F_got = expect_shape(result[0], F_ref.shape, f"F for T = {T:g}")
+                if not _close(F_got, F_ref, 1e-12, 1e-13):   # the mistakes (expm: 0.1 ms each) only on failure
+                    why = hints.formula(": F = I + F_t T")
+                    expect_close(F_got, F_ref, f"F for T = {T:g}", rtol=1e-13, atol=1e-12, mistakes=[
+                        (F_t * T, "the identity is missing from F (lecture 08 §3)" + why),
+                        (I + F_t, "F_t must be multiplied by the step T (lecture 08 §3)" + why),
+                        (I - F_t * T, "sign: the error moves forward along δẋ over the step (lecture 08 §3)"
+                                      + hints.formula(": F = I + F_t T, since δx_k ≈ δx_{k−1} + δẋ T")),
+                        (I + F_t * T * T, "F_t is multiplied by the step T, not T² (lecture 08 §3)" + why),
                         (expm(F_t * T), "that is the exact exponential e^{F_t T}; the lecture and the course "
-                                        "use the first-order F = I + F_t T (they differ by ½ F_t² T²)"),
-                    ])
-                B = expect_shape(result[1], B_ref.shape, f"B for T = {T} ({model} bias)")
+                                        "use its first-order form (lecture 08 §3; they differ by ½ F_t² T²)" + why),
+                    ], hint="F = I + F_t T is given in the exercise: return it unchanged")
+                B = expect_shape(result[1], B_ref.shape, f"B for T = {T:g} ({model} bias)")
                 Qd = B @ eskf.process_noise(DENSITY, T, model) @ B.T
                 blocks = (("δv", 3, DENSITY[0]), ("δθ", 6, DENSITY[1]), ("δb_a", 9, DENSITY[2]),
                           ("δb_ω", 12, DENSITY[3]))
                 for name, i, s in blocks[:2] if model == "constant" else blocks:
-                    got = Qd[i, i]
-                    exact = s * s * T
-                    if i >= 9:
-                        mistakes = [(s * s * T * T, "T where √T belongs: a random walk's variance grows with "
-                                                    "T, so its column of B scales with √T"),
-                                    (s * s, "the random-walk column of B must be scaled by √T"),
-                                    (s * s / T, "the random-walk column of B is multiplied by √T, not divided")]
-                    else:
-                        mistakes = [(s * s, "√T where T belongs: with per-sample variance σ²/T in Q, a "
-                                            "white-noise column of B scales with T"),
-                                    (s * s / T, "the white-noise column of B must be scaled by T"),
-                                    (s * s * T ** 3, "the white-noise column of B is scaled by T, not T²"),
-                                    (s * s / T ** 3, "the white-noise column of B is multiplied by T, not divided")]
-                    expect_close(got, exact, f"the {name} block of B Q Bᵀ for T = {T}", rtol=1e-9, atol=0.0,
-                                 mistakes=mistakes, hint="B Q Bᵀ must add σ² T on every block")
-                expect_close(B, B_ref, f"B for T = {T}", atol=1e-14, mistakes=[
-                    (-B_ref, "sign: B is B_t with its columns scaled by T and √T, not negated"),
-                ], hint="B = B_t with the n_a, n_ω columns × T and the bias columns × √T")
+                    expect_close(Qd[i, i], s * s * T, f"the {name} block of B Q Bᵀ for T = {T:g}", rtol=1e-9,
+                                 atol=0.0, mistakes=_white_and_walk_mistakes(s, T, i >= 9),
+                                 hint="B Q Bᵀ must add the variance each noise really brings in over T seconds "
+                                      "(lecture 08 §3)" + hints.formula(": σ² T on every block"))
+                # any sign of a column: −n has the covariance of n, and B enters the filter as B Q Bᵀ only
+                if not _same_up_to_column_signs(B, B_ref, 1e-14 * max(1.0, T)):
+                    raise CheckFailed(f"B for T = {T:g} differs from B_t with its columns scaled (max abs error "
+                                      f"{np.abs(np.abs(B) - np.abs(B_ref)).max():.3g}). Hint: each column of B is "
+                                      "the same column of B_t, scaled for one step as its kind of noise needs "
+                                      "(lecture 08 §3)" + hints.formula(": the n_a, n_ω columns × T and the bias "
+                                                                        "columns × √T"))
+        first = False
 
 
 @functools.lru_cache(maxsize=None)
@@ -371,25 +499,38 @@ def _propagate_cases():
 @check
 def check_eskf_propagate(propagate_covariance):
     """``propagate_covariance(P, F, B, Q)`` returns P̌ (15, 15), symmetric positive definite."""
+    F_ = hints.formula
     for P, F, B, Q in _propagate_cases():
-        got = expect_shape(call(propagate_covariance, P, F, B, Q), (15, 15), "P_check")
+        value = call(propagate_covariance, P, F, B, Q)
+        _expect_double(value, "P_check")
+        got = expect_shape(value, (15, 15), "P_check")
         ref = eskf.propagate_covariance(P, F, B, Q)
         noise = B @ Q @ B.T
         half = F @ P @ F
         expect_close(got, ref, "P_check", rtol=1e-9, atol=1e-15, mistakes=[
             (P, "P̌ equals P̂: the covariance was not propagated. Over a step the error is carried by the "
-                "transition F and the step's noise w (12 numbers, covariance Q) enters through B: "
-                "P̌ = F P̂ Fᵀ + B Q Bᵀ"),
-            (F @ P @ F.T, "the process noise is missing: P̌ = F P̂ Fᵀ + B Q Bᵀ"),
-            (0.5 * (half + half.T) + noise, "transpose: F P̂ Fᵀ, not F P̂ F"),
-            (half + noise, "transpose: F P̂ Fᵀ, not F P̂ F"),
-            (F.T @ P @ F + noise, "transpose: F P̂ Fᵀ, not Fᵀ P̂ F"),
-            (F @ P @ F.T - noise, "sign: the process noise adds uncertainty, + B Q Bᵀ"),
-            (F @ P @ F.T + B @ np.sqrt(Q) @ B.T, "Q already holds variances: B Q Bᵀ, not B √Q Bᵀ"),
-            (F @ P @ F.T + B @ Q @ Q @ B.T, "Q already holds variances: B Q Bᵀ, not B Q² Bᵀ"),
-            (F @ P @ F.T + B @ B.T, "the noise covariance Q is missing: + B Q Bᵀ, not + B Bᵀ"),
-            (P + noise, "the transition is missing: P̌ = F P̂ Fᵀ + B Q Bᵀ, not P̂ + B Q Bᵀ"),
-        ], hint="P̌ = F P̂ Fᵀ + B Q Bᵀ")
+                "transition F, and the step's noise w (12 numbers, covariance Q) enters through B (lecture 08 "
+                "§4, Predict)" + F_(": P̌ = F P̂ Fᵀ + B Q Bᵀ")),
+            (F @ P @ F.T, "the process noise is missing: the step's noise adds uncertainty (lecture 08 §4)"
+                          + F_(": P̌ = F P̂ Fᵀ + B Q Bᵀ")),
+            (0.5 * (half + half.T) + noise, "transpose: the covariance is carried through F on both sides, "
+                                            "once transposed (lecture 08 §4)" + F_(": F P̂ Fᵀ, not F P̂ F")),
+            (half + noise, "transpose: the covariance is carried through F on both sides, once transposed "
+                           "(lecture 08 §4)" + F_(": F P̂ Fᵀ, not F P̂ F")),
+            (F.T @ P @ F + noise, "transpose: F on the left, Fᵀ on the right (lecture 08 §4)"
+                                  + F_(": F P̂ Fᵀ, not Fᵀ P̂ F")),
+            (F @ P @ F.T - noise, "sign: the process noise adds uncertainty, it does not remove it (lecture 08 §4)"
+                                  + F_(": + B Q Bᵀ")),
+            (F @ P @ F.T + B @ np.sqrt(Q) @ B.T, "Q already holds variances: no square root (lecture 08 §3)"
+                                                 + F_(": B Q Bᵀ, not B √Q Bᵀ")),
+            (F @ P @ F.T + B @ Q @ Q @ B.T, "Q already holds variances: do not square it (lecture 08 §3)"
+                                            + F_(": B Q Bᵀ, not B Q² Bᵀ")),
+            (F @ P @ F.T + B @ B.T, "the noise covariance Q is missing between B and Bᵀ (lecture 08 §4)"
+                                    + F_(": + B Q Bᵀ, not + B Bᵀ")),
+            (P + noise, "the transition is missing: P̂ must be carried through F (lecture 08 §4)"
+                        + F_(": P̌ = F P̂ Fᵀ + B Q Bᵀ, not P̂ + B Q Bᵀ")),
+        ], hint="the prior covariance carries P̂ through the step's transition and adds the noise the step "
+                "brings in (lecture 08 §4, Predict): " + F_("P̌ = F P̂ Fᵀ + B Q Bᵀ"))
         expect_symmetric(got, "P_check")
 
 
@@ -416,8 +557,11 @@ def check_eskf_pose_residual(pose_residual):
     The attitude part is accepted within |δθ|² of Log(R_measᵀ Ř): the lecture's first-order
     δθ = (R_measᵀ Ř − I)^∨ passes; sign, frame and order mistakes err by O(|δθ|).
     """
+    F_ = hints.formula
     for x, p_m, R_m in _residual_cases():
-        got = expect_shape(call(pose_residual, x.position, x.rotation, p_m, R_m), (6,), "y")
+        value = call(pose_residual, x.position, x.rotation, p_m, R_m)
+        _expect_double(value, "y")
+        got = expect_shape(value, (6,), "y")
         ref = eskf.pose_residual(x.position, x.rotation, p_m, R_m)
         dth = ref[3:]
         body = so3.log(x.rotation @ R_m.T)
@@ -425,23 +569,32 @@ def check_eskf_pose_residual(pose_residual):
         if _close(got[:3], -ref[:3], 1e-12) and _close(got[3:], -dth, tol):
             raise CheckFailed("y is the negative of the residual (both parts). Hint: sign: this is measurement "
                               "minus prediction, the habit of the earlier chapters. Here error = nominal − true, "
-                              "and the residual must satisfy y ≈ G δx + n with G = POSE_G (blocks +I), so "
-                              "y = prediction − measurement: [p̌ − p_meas; Log(R_measᵀ Ř)]")
+                              "and the residual must satisfy y ≈ G δx + n with G = POSE_G (blocks +I), so it is "
+                              "prediction minus measurement (lecture 08 §4, Update)"
+                              + F_(": y = [p̌ − p_meas; Log(R_measᵀ Ř)]"))
         expect_close(got[:3], ref[:3], "the position residual y[0:3]", atol=1e-12, mistakes=[
-            (-ref[:3], "sign of the position residual: error = nominal − true, so "
-                       "y = p̌ − p_meas (prediction minus measurement)"),
-            (ref[3:], "order: y = [δp; δθ], the position residual first"),
-        ], hint="y[0:3] = p̌ − p_meas")
+            (-ref[:3], "sign of the position residual: error = nominal − true, so the residual is prediction "
+                       "minus measurement (lecture 08 §4)" + F_(": y = p̌ − p_meas")),
+            (ref[3:], "order: y = [δp; δθ], the position residual first (lecture 08 §4)"),
+        ], hint="the position residual compares prediction with measurement in the error's convention "
+                "(lecture 08 §4, Update): " + F_("y[0:3] = p̌ − p_meas"))
         expect_close(got[3:], dth, "the attitude residual y[3:6]", rtol=0.0, atol=tol, mistakes=[
-            (-dth, "sign of the attitude residual: Ř ≈ R_meas Exp(δθ), so "
-                   "δθ = Log(R_measᵀ Ř), not Log(Řᵀ R_meas)"),
-            (body, "the attitude error lives in the body frame: Log(R_measᵀ Ř), not Log(Ř R_measᵀ)"),
-            (-body, "body frame and sign: Log(R_measᵀ Ř), not Log(R_meas Řᵀ)"),
-            (so3.log(R_m @ x.rotation), "transpose: Log(R_measᵀ Ř), not Log(R_meas Ř)"),
-            (so3.log(x.rotation) - so3.log(R_m), "rotation vectors do not subtract: δθ = Log(R_measᵀ Ř), "
-                                                 "not Log(Ř) − Log(R_meas)"),
-            (ref[:3], "order: y = [δp; δθ], the attitude residual second"),
-        ], hint="y[3:6] = Log(R_measᵀ Ř) (or, to first order, (R_measᵀ Ř − I)^∨)")
+            (-dth, "sign of the attitude residual: Ř ≈ R_meas Exp(δθ), so the residual rotation is R_meas "
+                   "undone from Ř, not the other way round (lecture 08 §4)"
+                   + F_(": δθ = Log(R_measᵀ Ř), not Log(Řᵀ R_meas)")),
+            (body, "the attitude error lives in the body frame: the rotations compose on the right "
+                   "(lecture 08 §1)" + F_(": Log(R_measᵀ Ř), not Log(Ř R_measᵀ)")),
+            (-body, "body frame and sign: the attitude error lives in the body frame (lecture 08 §1)"
+                    + F_(": Log(R_measᵀ Ř), not Log(R_meas Řᵀ)")),
+            (so3.log(R_m @ x.rotation), "transpose: one of the two rotations is undone, so it enters "
+                                        "transposed (lecture 08 §4)" + F_(": Log(R_measᵀ Ř), not Log(R_meas Ř)")),
+            (so3.log(x.rotation) - so3.log(R_m), "rotation vectors do not subtract: the difference of two "
+                                                 "rotations is the rotation between them (lecture 07 §1)"
+                                                 + F_(": δθ = Log(R_measᵀ Ř), not Log(Ř) − Log(R_meas)")),
+            (ref[:3], "order: y = [δp; δθ], the attitude residual second (lecture 08 §4)"),
+        ], hint="the attitude residual is the rotation vector between the measured and the predicted attitude, "
+                "in the body frame (lecture 08 §4, Update): "
+                + F_("y[3:6] = Log(R_measᵀ Ř) (or, to first order, (R_measᵀ Ř − I)^∨)"))
 
 
 def _update_case(seed=4):
@@ -489,12 +642,14 @@ def _suboptimal_factor() -> float:
 @check
 def check_eskf_gain(kalman_gain):
     """``kalman_gain(P, G, R)`` returns K (15, m)."""
+    F_ = hints.formula
     for P, G, R in _gain_cases():
         m = G.shape[0]
         value = call(kalman_gain, P, G, R)
+        _expect_double(value, "K")
         if np.shape(value) == (m, 15):
-            raise CheckFailed(f"K has shape {(m, 15)}, expected {(15, m)}: transpose? K = P Gᵀ S⁻¹ "
-                              "maps the residual (m,) to the error state (15,)")
+            raise CheckFailed(f"K has shape {(m, 15)}, expected {(15, m)}: transpose? K maps the residual (m,) "
+                              "to the error state (15,) (lecture 03 §3)" + F_(": K = P Gᵀ S⁻¹"))
         got = expect_shape(value, (15, m), "K")
         ref = eskf.kalman_gain(P, G, R)
         if _close(got, ref, 1e-12, 1e-8):
@@ -502,17 +657,22 @@ def check_eskf_gain(kalman_gain):
         inv, PGt, GPGt = np.linalg.inv, P @ G.T, G @ P @ G.T
         with np.errstate(invalid="ignore"):     # √R of a correlated R: NaN entries, never matched
             root_R = np.sqrt(R)
+        S = F_(": S = G P Gᵀ + R")
         expect_close(got, ref, "K", rtol=1e-8, atol=1e-12, mistakes=[
-            (PGt @ inv(GPGt), "S = G P Gᵀ + R: the observation noise R is missing"),
-            (PGt @ inv(R), "P Gᵀ R⁻¹ is the gain only when P is the POSTERIOR P̂ (it follows from the "
-                           "information form P̂⁻¹ = P̌⁻¹ + Gᵀ R⁻¹ G); kalman_gain is given the PRIOR P̌, so "
-                           "K = P̌ Gᵀ S⁻¹ with S = G P̌ Gᵀ + R"),
-            (PGt @ inv(GPGt + root_R), "R holds variances: S = G P Gᵀ + R, not + √R"),
-            (PGt @ inv(GPGt + R @ R), "R holds variances already: S = G P Gᵀ + R, not + R²"),
-            (PGt @ inv(GPGt - R), "sign: S = G P Gᵀ + R"),
-            (PGt @ (GPGt + R), "the inverse is missing: K = P Gᵀ S⁻¹"),
-            (G.T @ inv(GPGt + R), "P is missing in front: K = P Gᵀ S⁻¹"),
-        ], hint="K = P Gᵀ (G P Gᵀ + R)⁻¹")
+            (PGt @ inv(GPGt), "the observation noise R is missing from the innovation covariance S (lecture 03 §3)"
+                              + S),
+            (PGt @ inv(R), "P Gᵀ R⁻¹ is the gain only when P is the POSTERIOR P̂ (it follows from the information "
+                           "form P̂⁻¹ = P̌⁻¹ + Gᵀ R⁻¹ G); kalman_gain is given the PRIOR P̌ (lecture 03 §3, "
+                           "lecture 08 §4)" + F_(", so K = P̌ Gᵀ S⁻¹ with S = G P̌ Gᵀ + R")),
+            (PGt @ inv(GPGt + root_R), "R holds variances: no square root in S (lecture 03 §3)" + S),
+            (PGt @ inv(GPGt + R @ R), "R holds variances already: do not square it in S (lecture 03 §3)" + S),
+            (PGt @ inv(GPGt - R), "sign: the observation noise adds to the innovation covariance (lecture 03 §3)"
+                                  + S),
+            (PGt @ (GPGt + R), "the inverse is missing: the gain divides by S (lecture 03 §3)" + F_(": K = P Gᵀ S⁻¹")),
+            (G.T @ inv(GPGt + R), "P is missing in front: the gain weighs by the prior covariance (lecture 03 §3)"
+                                  + F_(": K = P Gᵀ S⁻¹")),
+        ], hint="the gain weighs the prior uncertainty of the observed error against the innovation's "
+                "(lecture 03 §3, lecture 08 §4, Update): " + F_("K = P Gᵀ (G P Gᵀ + R)⁻¹"))
 
 
 @check
@@ -523,7 +683,9 @@ def check_eskf_covariance_update(update_covariance):
         K_opt = eskf.kalman_gain(P, G, R)
         c = _suboptimal_factor()
         for K, label in ((K_opt, "the optimal gain"), (c * K_opt, f"a sub-optimal gain {c:.2g} K")):
-            got = expect_shape(call(update_covariance, P, K, G, R), (n, n), f"P_hat with {label}")
+            value = call(update_covariance, P, K, G, R)
+            _expect_double(value, f"P_hat with {label}")
+            got = expect_shape(value, (n, n), f"P_hat with {label}")
             ref = eskf.update_covariance(P, K, G, R)
             if _close(got, ref, 1e-14, 1e-8):
                 expect_symmetric(got, "P_hat")
@@ -533,21 +695,28 @@ def check_eskf_covariance_update(update_covariance):
             with np.errstate(invalid="ignore"):     # √R of a correlated R: NaN entries, never matched
                 root_R = np.sqrt(R)
             KRK = K @ R @ K.T
+            F_ = hints.formula
+            joseph = F_(": P̂ = (I − K G) P̌ (I − K G)ᵀ + K R Kᵀ")
             expect_close(got, ref, f"P_hat with {label}", rtol=1e-8, atol=1e-14, mistakes=[
-                (A @ P @ A.T, "the Joseph form needs its second term: + K R Kᵀ"),
-                (A @ P, "(I − K G) P̌ is right only for the optimal gain; the Joseph form "
-                        "(I − K G) P̌ (I − K G)ᵀ + K R Kᵀ holds for any K and stays symmetric"),
-                (symmetrise(A @ P), "(I − K G) P̌, even symmetrised, is right only for the optimal gain; the "
-                                    "Joseph form (I − K G) P̌ (I − K G)ᵀ + K R Kᵀ holds for any K"),
-                (A.T @ P @ A + KRK, "transpose: (I − K G) P̌ (I − K G)ᵀ, not (I − K G)ᵀ P̌ (I − K G)"),
-                (A @ P @ A.T - KRK, "sign: the Joseph form adds the measurement noise, + K R Kᵀ"),
-                (A @ P @ A.T + K @ root_R @ K.T, "R holds variances: + K R Kᵀ, not K √R Kᵀ"),
-                (A @ P @ A.T + K @ K.T, "the observation noise R is missing from K R Kᵀ"),
-                (Ap @ P @ Ap.T + KRK, "sign: I − K G, not I + K G"),
-            ], hint="P̂ = (I − K G) P̌ (I − K G)ᵀ + K R Kᵀ")
+                (A @ P @ A.T, "the Joseph form needs its second term, the noise the gain lets in, + K R Kᵀ "
+                              "(lecture 03 §8)" + joseph),
+                (A @ P, "(I − K G) P̌ is right only for the optimal gain; the Joseph form holds for any K and stays "
+                        "symmetric (lecture 03 §8)" + joseph),
+                (symmetrise(A @ P), "(I − K G) P̌, even symmetrised, is right only for the optimal gain; the Joseph "
+                                    "form holds for any K (lecture 03 §8)" + joseph),
+                (A.T @ P @ A + KRK, "transpose: (I − K G) on the left, its transpose on the right (lecture 03 §8)"
+                                    + F_(": (I − K G) P̌ (I − K G)ᵀ, not (I − K G)ᵀ P̌ (I − K G)")),
+                (A @ P @ A.T - KRK, "sign: the Joseph form adds the measurement noise, + K R Kᵀ (lecture 03 §8)"),
+                (A @ P @ A.T + K @ root_R @ K.T, "R holds variances: no square root in K R Kᵀ (lecture 03 §8)"),
+                (A @ P @ A.T + K @ K.T, "the observation noise R is missing from K R Kᵀ (lecture 03 §8)"),
+                (Ap @ P @ Ap.T + KRK, "sign: the update removes the observed part, I − K G, not I + K G "
+                                      "(lecture 03 §8)"),
+            ], hint="the Joseph form keeps P̂ right for any gain and symmetric (lecture 03 §8, lecture 08 §4): "
+                    + F_("P̂ = (I − K G) P̌ (I − K G)ᵀ + K R Kᵀ"))
             expect_symmetric(got, "P_hat")
             if np.linalg.eigvalsh(symmetrise(got)).min() < 0.0:
-                raise CheckFailed("P_hat is not positive semi-definite")
+                raise CheckFailed("P_hat is not positive semi-definite. Hint: the Joseph form is a sum of two "
+                                  "positive semi-definite terms (lecture 03 §8)")
 
 
 def _rotation_error(R, R_ref) -> float:
@@ -576,12 +745,14 @@ def check_eskf_inject(inject):
     The rotation is accepted within |δθ|² (angle) of Ř Exp(−δθ): the lecture's first-order
     Ř (I − [δθ]×), re-orthonormalised, passes; sign and side mistakes err by O(|δθ|).
     """
+    F_ = hints.formula
     for true, nom, dx in _inject_cases():
         got = call(inject, nom, dx)
         for field in ("position", "velocity", "rotation", "accel_bias", "gyro_bias"):
             if not hasattr(got, field):
                 raise CheckFailed(f"inject must return a NominalState; the result has no {field!r}")
         fields = ("position", "velocity", "rotation", "accel_bias", "gyro_bias")
+        _expect_double(tuple(getattr(got, name) for name in fields), "the injected state")
         if all(_close(getattr(got, name), getattr(nom, name), 0.0) for name in fields):
             raise CheckFailed("the nominal state came back unchanged: the estimated error δx̂ was not used. "
                               "Hint: inject removes δx̂ from every part of the nominal state (position, "
@@ -589,9 +760,10 @@ def check_eskf_inject(inject):
                               "the attitude must stay a rotation matrix (lecture 08 §4, Inject)")
         R = expect_shape(got.rotation, (3, 3), "rotation after injection")
         if not so3.is_rotation(R, tol=1e-9):
-            raise CheckFailed("the rotation after injection is not orthonormal (RᵀR ≠ I). Hint: inject "
-                              "with Ř Exp(−δθ); the lecture's first-order Ř (I − [δθ]×) is not a rotation "
-                              "unless it is re-orthonormalised (so3.orthonormalise)")
+            raise CheckFailed("the rotation after injection is not orthonormal (RᵀR ≠ I). Hint: the lecture's "
+                              "first-order form is not a rotation unless it is re-orthonormalised "
+                              "(so3.orthonormalise); the exponential is (lecture 08 §4, Inject)"
+                              + F_(": R̂ = Ř Exp(−δθ)"))
 
         parts = {"δp": (0, 3), "δv": (3, 6), "δθ": (6, 9), "δb_a": (9, 12), "δb_ω": (12, 15)}
         for field, own, formula in (("position", "δp", "p̂ = p̌ − δp"), ("velocity", "δv", "v̂ = v̌ − δv"),
@@ -599,32 +771,41 @@ def check_eskf_inject(inject):
                                     ("gyro_bias", "δb_ω", "b̂_ω = b̌_ω − δb_ω")):
             base, (i0, i1) = getattr(nom, field), parts[own]
             name = field.replace("_", " ")
-            mistakes = [(base + dx[i0:i1], f"sign: error = nominal − true, so {formula}"),
-                        (base, f"the {name} is not corrected: {formula}")]
+            mistakes = [(base + dx[i0:i1], f"sign: error = nominal − true, so the estimated error is removed, "
+                                           f"not added (lecture 08 §4, Inject)" + F_(f": {formula}")),
+                        (base, f"the {name} is not corrected (lecture 08 §4, Inject)" + F_(f": {formula}"))]
             mistakes += [(base - dx[j0:j1], f"wrong part of dx: {own} is dx[{i0}:{i1}], not dx[{j0}:{j1}] "
-                                            f"({other}); {formula}")
+                                            f"({other}; lecture 08 §4)")
                          for other, (j0, j1) in parts.items() if other != own]
             expect_close(getattr(got, field), getattr(true, field), f"{name} after injection", atol=1e-12,
-                         mistakes=mistakes, hint=formula)
+                         mistakes=mistakes, hint=f"remove the {name}'s part of δx̂ from the nominal {name} "
+                                                 "(lecture 08 §4, Inject): " + F_(formula))
 
         err = _rotation_error(R, true.rotation)
         if err <= _attitude_tolerance(dx[6:9]):
             continue
         th = dx[6:9]
-        for wrong, why in ((nom.rotation @ so3.exp(th), "sign: Ř = R Exp(δθ), so R̂ = Ř Exp(−δθ)"),
-                           (so3.exp(-th) @ nom.rotation, "δθ is a body-frame error: multiply on the right, "
-                                                         "Ř Exp(−δθ), not Exp(−δθ) Ř"),
-                           (so3.exp(th) @ nom.rotation, "sign and side: R̂ = Ř Exp(−δθ)"),
-                           (nom.rotation.T @ so3.exp(-th), "transpose: R̂ = Ř Exp(−δθ), not Řᵀ Exp(−δθ)"),
-                           (nom.rotation, "the attitude is not corrected: R̂ = Ř Exp(−δθ)"),
-                           *[(nom.rotation @ so3.exp(-dx[j0:j1]), f"wrong part of dx: δθ is dx[6:9], not "
-                                                                   f"dx[{j0}:{j1}] ({other})")
-                             for other, (j0, j1) in parts.items() if other != "δθ"]):
-            if _rotation_error(R, wrong) <= _attitude_tolerance(th):
-                raise CheckFailed(f"rotation after injection is wrong. Hint: {why}")
-        raise CheckFailed(f"rotation after injection differs from Ř Exp(−δθ) by {err:.3g} rad (allowed, for "
-                          f"the lecture's first-order form: |δθ|² = {_attitude_tolerance(th):.2g}). "
-                          "Hint: R̂ = Ř Exp(−δθ)")
+        why = known_mistake([R], [None], [
+            (nom.rotation @ so3.exp(th), "sign: the attitude error is removed, so the correction turns by −δθ "
+                                         "(lecture 08 §4, Inject)" + F_(": Ř = R Exp(δθ), so R̂ = Ř Exp(−δθ)")),
+            (so3.exp(-th) @ nom.rotation, "δθ is a body-frame error: multiply on the right (lecture 08 §4)"
+                                          + F_(": Ř Exp(−δθ), not Exp(−δθ) Ř")),
+            (so3.exp(th) @ nom.rotation, "sign and side: the body-frame error is removed on the right "
+                                         "(lecture 08 §4)" + F_(": R̂ = Ř Exp(−δθ)")),
+            (nom.rotation.T @ so3.exp(-th), "transpose: correct Ř itself, not Řᵀ (lecture 08 §4)"
+                                            + F_(": R̂ = Ř Exp(−δθ), not Řᵀ Exp(−δθ)")),
+            (nom.rotation, "the attitude is not corrected (lecture 08 §4, Inject)" + F_(": R̂ = Ř Exp(−δθ)")),
+            *[(nom.rotation @ so3.exp(-dx[j0:j1]), f"wrong part of dx: δθ is dx[6:9], not dx[{j0}:{j1}] "
+                                                   f"({other}; lecture 08 §4)")
+              for other, (j0, j1) in parts.items() if other != "δθ"],
+        ], close=lambda mine, wrong, _: _rotation_error(mine, wrong) <= _attitude_tolerance(th),
+            evaluate=lambda wrong, _: wrong)
+        if why:
+            raise CheckFailed(f"rotation after injection is wrong. Hint: {why}")
+        raise CheckFailed(f"rotation after injection differs from the corrected attitude by {err:.3g} rad "
+                          f"(allowed, for the lecture's first-order form: |δθ|² = {_attitude_tolerance(th):.2g}). "
+                          "Hint: the body-frame attitude error is removed on the right (lecture 08 §4, Inject): "
+                          + F_("R̂ = Ř Exp(−δθ)"))
 
 
 @functools.lru_cache(maxsize=None)
@@ -660,9 +841,12 @@ def check_eskf_reset(reset_covariance):
         G[rows, rows] = block
         return symmetrise(G @ P @ G.T), G
 
+    F_ = hints.formula
     for dx in steps:
         th = dx[6:9]
-        got = expect_shape(call(reset_covariance, P, dx), (15, 15), "P after reset")
+        value = call(reset_covariance, P, dx)
+        _expect_double(value, "P after reset")
+        got = expect_shape(value, (15, 15), "P after reset")
         exact = eskf.reset_covariance(P, dx, exact=True)
         first, G1 = sandwich(np.eye(3) + 0.5 * so3.hat(th))
         # only the attitude rows and columns change: scale the tolerance by them
@@ -671,26 +855,29 @@ def check_eskf_reset(reset_covariance):
             expect_symmetric(got, "P after reset")
             continue
         sign, _ = sandwich(np.eye(3) - 0.5 * so3.hat(th))
-        mistakes = [
+        block = F_(": G's attitude block is J_l(δθ̂) ≈ I + ½[δθ̂]×")
+        why = known_mistake([got], [None], [
             (sign, "sign of the reset Jacobian: I − ½[δθ̂]× is the reset of the opposite convention "
-                   "(true = nominal ⊕ error); for this course's error = nominal − true, "
-                   "δθ⁺ ≈ δθ − δθ̂ + ½[δθ̂]× δθ, so the attitude block is J_l(δθ̂) ≈ I + ½[δθ̂]× (the same "
-                   "wrong result comes from Gᵀ P G for G P Gᵀ, or from the right Jacobian J_r)"),
+                   "(true = nominal ⊕ error); this course's error = nominal − true flips it (lecture 08 §4, "
+                   "Reset; the same wrong result comes from Gᵀ P G for G P Gᵀ, or from the right Jacobian J_r)"
+                   + F_(": δθ⁺ ≈ δθ − δθ̂ + ½[δθ̂]× δθ, so the attitude block is J_l(δθ̂) ≈ I + ½[δθ̂]×")),
             (P, "the covariance is (to first order) unchanged; this exercise asks for the reset P ← G P Gᵀ "
-                "(with Gᵀ on the right: the symmetric part of G P G is P + O(|δθ̂|²))"),
-            (symmetrise(G1 @ P), "P ← G P Gᵀ: the Gᵀ on the right is missing"),
-            (G1 @ P @ G1, "transpose: P ← G P Gᵀ, not G P G"),
-            (sandwich(np.eye(3) + so3.hat(th))[0], "the factor ½ is missing: G's attitude block is I + ½[δθ̂]×"),
+                "(with Gᵀ on the right: the symmetric part of G P G is P + O(|δθ̂|²); lecture 08 §4, Reset)"),
+            (symmetrise(G1 @ P), "P ← G P Gᵀ: the Gᵀ on the right is missing (lecture 08 §4, Reset)"),
+            (G1 @ P @ G1, "transpose: P ← G P Gᵀ, not G P G (lecture 08 §4, Reset)"),
+            (sandwich(np.eye(3) + so3.hat(th))[0], "the factor ½ is missing from G's attitude block "
+                                                   "(lecture 08 §4, Reset)" + block),
             (sandwich(np.eye(3) + 0.5 * so3.hat(th), slice(3, 6))[0],
-             "wrong block: the reset changes the attitude block G[6:9, 6:9] (rows and columns of δθ)"),
-            (sandwich(np.eye(3) + 0.5 * so3.hat(dx[3:6]))[0], "wrong part of dx: δθ̂ is dx[6:9]"),
-        ]
-        for wrong, why in mistakes:
-            if _close(got, wrong, max(tol, 1e-15), 1e-9):
-                raise CheckFailed(f"P after reset is wrong. Hint: {why}")
+             "wrong block: the reset changes the attitude block G[6:9, 6:9] (rows and columns of δθ; "
+             "lecture 08 §4, Reset)"),
+            (sandwich(np.eye(3) + 0.5 * so3.hat(dx[3:6]))[0], "wrong part of dx: δθ̂ is dx[6:9] (lecture 08 §4)"),
+        ], close=lambda mine, wrong, _: _close(mine, wrong, max(tol, 1e-15), 1e-9), evaluate=lambda wrong, _: wrong)
+        if why:
+            raise CheckFailed(f"P after reset is wrong. Hint: {why}")
         err = np.abs(np.asarray(got) - exact).max()
-        raise CheckFailed(f"P after reset differs from G P Gᵀ (max abs error {err:.3g}). "
-                          "Hint: P ← G P Gᵀ, G = I except G[6:9, 6:9] = J_l(δθ̂) ≈ I + ½[δθ̂]×")
+        raise CheckFailed(f"P after reset differs from G P Gᵀ (max abs error {err:.3g}). Hint: the reset moves "
+                          "the covariance to the corrected state through G, the identity except its attitude "
+                          "block (lecture 08 §4, Reset)" + F_(": P ← G P Gᵀ, G[6:9, 6:9] = J_l(δθ̂) ≈ I + ½[δθ̂]×"))
 
 
 # ---------------------------------------------------------------------------------------
@@ -711,34 +898,38 @@ _RUN_MISTAKES = (
     ("no_update", "the posterior equals the prior: the lidar poses were never used. At each lidar time, "
                   "compute the residual and the gain, the estimated error δx̂ = K y and P̂, inject δx̂ into "
                   "the nominal state and reset P (lecture 08 §4)"),
-    ("R_deg", "units: the attitude part of the residual is in radians, so R must be too; 0.3 is the "
-              "attitude σ in DEGREES (cfg.describe() shows the settings with their units; cfg.lidar_std holds "
-              "the six σ in SI units, m and rad). R = diag(σ²) in the residual's units"),
-    ("R_std", "the observation noise R holds variances: R = diag(σ²) of the lidar noise "
-              "(cfg.lidar_std**2), not diag(σ)"),
-    ("P0_std", "the prior covariance holds variances: P₀ = diag(σ₀²) (cfg.prior_std**2), not diag(σ₀)"),
-    ("no_reset", "the covariance reset after the injection is missing: P ← G P Gᵀ (reset_covariance(P, dx))"),
-    ("no_inject", "the estimated error is never injected into the nominal state (x ← inject(x, δx̂))"),
-    ("no_update_P", "the covariance is not updated after the observation: P̂ = update_covariance(P̌, K, G, R)"),
+    ("P0_std", "the prior covariance holds variances, not standard deviations (lecture 08 §4)"
+               + hints.formula(": P₀ = diag(σ₀²) (cfg.prior_std**2), not diag(σ₀)")),
+    ("no_reset", "the covariance reset after the injection is missing (lecture 08 §4, Reset)"
+                 + hints.formula(": P ← G P Gᵀ (reset_covariance(P, dx))")),
+    ("no_inject", "the estimated error is never injected into the nominal state (lecture 08 §4, Inject)"
+                  + hints.formula(": x ← inject(x, δx̂)")),
+    ("no_update_P", "the covariance is not updated after the observation (lecture 08 §4, Update)"
+                    + hints.formula(": P̂ = update_covariance(P̌, K, G, R)")),
     ("prior_out", "the prior (before the update) is stored instead of the posterior: record t, x̂ and P̂ "
-                  "after the update, injection and reset"),
-    ("dx_sign", "sign of the correction: δx̂ = K y with the residual y = prediction − measurement "
-                "(pose_residual(p̌, Ř, p_meas, R_meas)), and the injection subtracts it"),
-    ("no_interp", "at a lidar time between two IMU samples, interpolate the readings to that time "
-                  "(f_j = (1 − s) f_{k−1} + s f_k) before propagating to it"),
+                  "after the update, injection and reset (lecture 08 §4)"),
+    ("dx_sign", "sign of the correction: the estimated error is K times the residual of your pose_residual, "
+                "and inject removes it (lecture 08 §4)" + hints.formula(": δx̂ = K y with y = prediction − "
+                                                                       "measurement")),
+    ("no_interp", "at a lidar time between two IMU samples, interpolate the readings to that time before "
+                  "propagating to it (exercise §8)"
+                  + hints.formula(": f_j = (1 − s) f_{k−1} + s f_k")),
     ("no_predict_to_obs", "propagate the state to the lidar time before the update (the lidar time lies "
-                          "between two IMU samples)"),
-    ("full_step", "after an update at a lidar time t_j, the rest of the IMU interval is imu.t[k] − t_j "
-                  "long, not the whole imu.t[k] − imu.t[k−1] (keep t, f, ω of the last node you reached)"),
+                          "between two IMU samples; exercise §8)"),
+    ("full_step", "after an update at a lidar time t_j, the rest of the IMU interval is shorter than a whole "
+                  "one (exercise §8)" + hints.formula(": imu.t[k] − t_j, not imu.t[k] − imu.t[k−1] (keep t, f, ω "
+                                                      "of the last node you reached)")),
     ("stale_start", "after an update at a lidar time, propagate the rest of the IMU interval from the "
-                    "readings interpolated at the lidar time (the last node), not from those of imu.t[k−1]"),
-    ("loop_start", "off by one: the loop over IMU samples starts at k0 + 1 (the first step goes from "
-                   "imu.t[k0] to imu.t[k0 + 1])"),
-    ("w_start", "linearise F_t at the step's mean angular rate ½(ω₀ + ω₁), the rate the nominal step uses, "
-                "not at ω₀"),
-    ("constant_bias", "the configuration's bias model is a random walk: noise_jacobian(R) and "
-                      "process_noise(density, T) with their bias-noise columns"),
-    ("gravity_sign", "gravity: pass ex.gravity (the navigation-frame vector, z down = −9.81) to the nominal step"),
+                    "readings interpolated at the lidar time (the last node), not from those of imu.t[k−1] "
+                    "(exercise §8)"),
+    ("loop_start", "off by one: the loop over IMU samples skips the first step (exercise §8)"
+                   + hints.formula(": it starts at k0 + 1, the first step going from imu.t[k0] to imu.t[k0 + 1]")),
+    ("w_start", "linearise F_t at the step's mean angular rate, the rate the nominal step uses, not at ω₀ "
+                "(lecture 08 §4, Predict)" + hints.formula(": ½(ω₀ + ω₁)")),
+    ("constant_bias", "the configuration's bias model is a random walk: use noise_jacobian(R) and "
+                      "process_noise(density, T) with their bias-noise columns (lecture 08 §3)"),
+    ("gravity_sign", "gravity: pass ex.gravity (the navigation-frame vector, z down = −9.81) to the nominal "
+                     "step (lecture 07 §4)"),
 )
 
 
@@ -757,23 +948,25 @@ def _learner_pieces(namespace) -> dict:
     return pieces
 
 
-def _drive(pieces: dict, ex, t_end: float, cfg, mistake: str | None = None):
+def _drive(pieces: dict, ex, t_end: float, cfg, mistake: str | None = None, R_noise=None,
+           rows: int | None = None):
     """The run of the exercise, from the given building blocks, optionally with one mistake.
 
     Mirrors the exercise's ``run_eskf`` (and :func:`kalman_course.filters.eskf.run`, to
     1e-9 m): the nominal state propagated by the midpoint rule, the covariance by F and B at
     the start of each step (mean rate), an observation between two IMU samples reached by
     interpolating the readings, then residual, gain, Joseph update, injection and reset.
-    Returns (t, positions, rotations, P) at the lidar times.
+    ``R_noise`` replaces the observation noise the run builds from ``cfg`` (a run with R in
+    other units); ``rows`` stops the run once it has that many output rows (a run that
+    differs from the learner's in its first rows cannot reproduce the rest: the cheap test
+    before a whole run). Returns (t, positions, rotations, P) at the lidar times.
     """
     pc = pieces
     imu, lidar = ex.imu, ex.lidar
     k0, s0 = ex.initial_state()
     x = NominalState.from_nav(s0)
     P = np.diag(cfg.prior_std if mistake == "P0_std" else cfg.prior_std ** 2)
-    R_noise = np.diag(cfg.lidar_std if mistake == "R_std" else cfg.lidar_std ** 2)
-    if mistake == "R_deg":        # the attitude σ taken in degrees as if it were radians
-        R_noise = np.diag(np.r_[cfg.lidar_std[:3], np.rad2deg(cfg.lidar_std[3:])] ** 2)
+    R_noise = np.diag(cfg.lidar_std ** 2) if R_noise is None else R_noise
     g = -ex.gravity if mistake == "gravity_sign" else ex.gravity
     model = "constant" if mistake == "constant_bias" else "random_walk"
 
@@ -788,7 +981,7 @@ def _drive(pieces: dict, ex, t_end: float, cfg, mistake: str | None = None):
     j = int(np.searchsorted(lidar.t, t, side="right"))
     out = []
     for k in range(k0 + (2 if mistake == "loop_start" else 1), len(imu.t)):
-        if imu.t[k] > t_end:
+        if imu.t[k] > t_end or (rows is not None and len(out) >= rows):
             break
         while j < len(lidar.t) and lidar.t[j] <= imu.t[k]:
             s = (lidar.t[j] - imu.t[k - 1]) / (imu.t[k] - imu.t[k - 1])
@@ -845,6 +1038,73 @@ def _quiet(fn, *args):
         return fn(*args)
 
 
+#: Rows of the learner's run compared before a whole run is rebuilt with a mistake: the first
+#: two updates (the second shows a missing reset or injection).
+_FIRST_ROWS = 2
+
+_DEG = 180.0 / np.pi
+
+#: What the attitude part of R may hold instead of σ_θ² (rad²), from σ_θ in rad: (name, how
+#: the learner got there, the diagonal entry). The exercise's own task (its §8): R in the
+#: residual's units, from a configuration that states the attitude σ in degrees.
+_R_ATTITUDE_UNITS = (
+    ("deg", "the attitude σ in degrees (0.3) used as if it were radians", lambda s: (s * _DEG) ** 2),
+    ("twice", "the attitude σ converted from degrees a second time (cfg.lidar_std is in radians "
+              "already, so np.deg2rad makes σ 57 times too small)", lambda s: (s / _DEG) ** 2),
+    ("var_deg", "a variance in deg² converted with one factor π/180 (a variance converts with the "
+                "square of the factor)", lambda s: s * s * _DEG),
+    ("std", "σ where the variance σ² belongs", lambda s: s),
+    ("std_deg", "σ where the variance σ² belongs, in degrees as well", lambda s: s * _DEG),
+    ("std_twice", "σ where the variance σ² belongs, converted from degrees a second time", lambda s: s / _DEG),
+)
+
+#: The same for the position part (m²), from σ_p in m.
+_R_POSITION_UNITS = (("std", "σ where the variance σ² belongs", lambda s: s),)
+
+
+def _units_of_R(cfg):
+    """The observation noise R built with wrong units: (R, what is wrong with it in words), each
+    combination of a position part and an attitude part, the right one left out."""
+    s_p, s_th = cfg.lidar_std[:3], cfg.lidar_std[3:]
+    position = (("", "", lambda s: s * s),) + _R_POSITION_UNITS
+    attitude = (("", "", lambda s: s * s),) + _R_ATTITUDE_UNITS
+    out = []
+    for p_name, p_why, p_var in position:
+        for a_name, a_why, a_var in attitude:
+            if p_name or a_name:
+                why = "; and ".join(w for w in (p_why and f"in its position part, {p_why}",
+                                                a_why and f"in its attitude part, {a_why}") if w)
+                out.append((np.diag(np.r_[p_var(s_p), a_var(s_th)]), why))
+    return out
+
+
+def _r_units_hint(why: str) -> str:
+    """The hint for an R built with wrong units (the run's own task, exercise 08 §8)."""
+    return ("units of the observation noise R (exercise §8; lecture 08 §4, Update): R is the covariance "
+            "of the pose residual's noise, so it holds VARIANCES in the residual's units, m² and rad²; "
+            f"yours has, {why}. The table of cfg.describe shows the settings as written, with their units "
+            "(the attitude σ in DEGREES); cfg.lidar_std holds the same six σ in SI units (m and rad): "
+            + hints.formula("R = diag(σ²) = np.diag(cfg.lidar_std**2)"))
+
+
+def _first_rows(result, count: int):
+    """The first ``count`` rows of a run (t, positions, rotations, P)."""
+    return tuple(np.asarray(x, dtype=float)[:count] for x in result)
+
+
+def _reproduces(result, pieces, ex, t_end, cfg, mistake=None, R_noise=None) -> bool:
+    """Whether the run from ``pieces`` with one mistake (or another R) gives the learner's
+    ``result``: its first rows first (cheap), then the whole run."""
+    try:
+        head = call(_drive, pieces, ex, t_end, cfg, mistake, R_noise, _FIRST_ROWS, label="your building blocks")
+        if not _same_run(_first_rows(result, _FIRST_ROWS), _first_rows(head, _FIRST_ROWS)):
+            return False
+        whole = call(_drive, pieces, ex, t_end, cfg, mistake, R_noise, label="your building blocks")
+    except CheckFailed:
+        return False
+    return _same_run(result, whole)
+
+
 def _diagnose_run(run_eskf, result, ex, t_end, cfg) -> str | None:
     """Why the learner's run differs, or None if it equals a run built from the learner's pieces.
 
@@ -852,7 +1112,8 @@ def _diagnose_run(run_eskf, result, ex, t_end, cfg) -> str | None:
     2. ``process_noise`` (ungraded) against the reference.
     3. The run rebuilt from the learner's pieces: equal means the run is right (pieces such as
        the lecture's first-order forms, accepted by their checks, change the numbers slightly).
-    4. The same with one known run mistake at a time (``_RUN_MISTAKES``).
+    4. The same with R in wrong units (the section's own task: :func:`_units_of_R`), then with
+       one known run mistake at a time (``_RUN_MISTAKES``).
     """
     namespace = learner_namespace(run_eskf) or {}
     why = _failing_piece(namespace)
@@ -865,12 +1126,11 @@ def _diagnose_run(run_eskf, result, ex, t_end, cfg) -> str | None:
         own = None
     if own is not None and _same_run(result, own):
         return None
+    for R_noise, what in _units_of_R(cfg):
+        if _reproduces(result, pieces, ex, t_end, cfg, R_noise=R_noise):
+            return _r_units_hint(what)
     for mistake, why in _RUN_MISTAKES:
-        try:
-            wrong = call(_drive, pieces, ex, t_end, cfg, mistake, label="your building blocks")
-        except CheckFailed:
-            continue
-        if _same_run(result, wrong):
+        if _reproduces(result, pieces, ex, t_end, cfg, mistake):
             return why
     return ""
 
@@ -886,10 +1146,16 @@ def _failing_piece(namespace) -> str:
             got = call(pn, DENSITY, T)
             ref = eskf.process_noise(DENSITY, T)
             if not _close(np.asarray(got, dtype=float) if np.shape(got) == ref.shape else np.zeros(0), ref, 1e-15, 1e-9):
-                return ("your process_noise is wrong: Q_k = diag(σ_a²/T ×3, σ_ω²/T ×3, σ_ba² ×3, σ_bω² ×3) "
-                        "holds per-sample variances (density² / T for the white noises, density² for "
-                        "the random walks); fix process_noise first")
+                return ("your process_noise is wrong. Hint: fix process_noise first: Q_k holds per-sample "
+                        "variances, from the densities as each kind of noise needs them (lecture 08 §3)"
+                        + hints.formula(": Q_k = diag(σ_a²/T ×3, σ_ω²/T ×3, σ_ba² ×3, σ_bω² ×3), density² / T "
+                                        "for the white noises, density² for the random walks"))
     return ""
+
+
+def _names_a_piece(why: str | None) -> bool:
+    """Whether a diagnosis blames one of the learner's pieces (a message of its own, with its hint)."""
+    return bool(why) and why.startswith(("your ", "this function calls your "))
 
 
 def _diagnose_crash(run_eskf, ex, t_end, cfg, message: str) -> str:
@@ -983,6 +1249,8 @@ def check_eskf_run(run_eskf):
         result = call(run_eskf, ex, t_end, cfg)
     except CheckFailed as exc:          # the run crashed: a wrong piece, or a mistake that diverges
         why = _diagnose_crash(run_eskf, ex, t_end, cfg, str(exc))
+        if _names_a_piece(why):        # the piece's own failure, told as the harness tells one
+            raise CheckFailed(why) from None
         raise CheckFailed(f"{exc}" + (f". Hint: {why}" if why else "")) from None
     if not isinstance(result, (tuple, list)) or len(result) != 4:
         raise CheckFailed("run_eskf must return a tuple (t, positions, rotations, P)")
@@ -1000,7 +1268,7 @@ def check_eskf_run(run_eskf):
     why = _diagnose_run(run_eskf, (t, p, Rs, P), ex, t_end, cfg)
     if why is None:            # equal to the run built from the learner's own (checked) pieces
         return
-    if why and why.startswith("your "):
+    if _names_a_piece(why):
         raise CheckFailed(why)
     truth = ex.truth.position[np.searchsorted(ex.truth.t, ref.t - 1e-6)]
     err, err_ref = position_rmse(p, truth), position_rmse(ref.position, truth)
@@ -1011,11 +1279,15 @@ def check_eskf_run(run_eskf):
                  hint="one output row per lidar pose in (t₀, t_end], at the lidar time")
     expect_close(p, ref.position, f"positions on {what}", rtol=0.0, atol=1e-6,
                  hint=f"your position RMSE against ground truth is {err:.4f} m, the reference's "
-                      f"{err_ref:.4f} m; every piece passes its check, so compare the loop with the "
-                      "lecture: propagate to each lidar time, residual, gain, update, inject, reset")
-    expect_close(Rs, ref.rotation, "rotations", atol=1e-6)
+                      f"{err_ref:.4f} m. Every piece passes its check, and the run is none of the known "
+                      "mistakes of the loop (R's units among them): compare the loop with the lecture's "
+                      "(lecture 08 §4; exercise §8)"
+                      + hints.formula(": propagate to each lidar time, residual, gain, update, inject, reset"))
+    expect_close(Rs, ref.rotation, "rotations", atol=1e-6,
+                 hint="each row holds the posterior attitude after the update, injection and reset "
+                      "(lecture 08 §4)")
     expect_close(P, ref.P, "P at the update times", rtol=1e-3, atol=5e-9,
-                 hint="store the posterior P̂ (after update and reset) at each lidar time")
+                 hint="store the posterior P̂ (after update and reset) at each lidar time (lecture 08 §4)")
 
 
 # ---------------------------------------------------------------------------------------
@@ -1068,12 +1340,14 @@ def check_nominal_ekf_observation(align_quaternion):
         for s_check in (1.0, -1.0):
             for s_meas in (1.0, -1.0):
                 got = call(align_quaternion, s_check * q, s_meas * q_m)
+                _expect_double(got, "the aligned measured quaternion")
                 want = s_check * q_m
                 expect_close(got, want, "the aligned measured quaternion", atol=1e-12, mistakes=[
-                    (-want, "q and −q are the same rotation, but the EKF subtracts quaternions: pick the "
-                            "sign of q_meas that makes q_measᵀ q̌ ≥ 0 (the dot product over all four "
-                            "components, with q̌ as given)"),
-                ], hint="return q_meas if q_meas · q_check ≥ 0, else −q_meas (no normalisation to w ≥ 0)")
+                    (-want, "sign: q and −q are the same rotation, but the EKF subtracts quaternions, so of "
+                            "±q_meas take the one on q̌'s side, judged by the dot product over all four "
+                            "components, with q̌ as given (lecture 08 §9)" + hints.formula(": q_measᵀ q̌ ≥ 0")),
+                ], hint="of ±q_meas, return the one closer to q_check, with no normalisation to w ≥ 0 (lecture "
+                        "08 §9)" + hints.formula(": q_meas if q_meas · q_check ≥ 0, else −q_meas"))
 
 
 _A_FORMULAS = {("p", "v"): "I", ("v", "q"): "∂(R(q) a)/∂q = rotate_jacobian(q, f − b_a)",
@@ -1088,30 +1362,41 @@ def check_nominal_ekf_jacobian(nominal_jacobian):
     for x, f, w in _cases():
         q = so3.matrix_to_quat(x.rotation)
         b_a, b_w = x.accel_bias, x.gyro_bias
-        got = expect_shape(call(nominal_jacobian, q, f, w, b_a, b_w), (16, 16), "A")
+        value = call(nominal_jacobian, q, f, w, b_a, b_w)
+        _expect_double(value, "A")
+        got = expect_shape(value, (16, 16), "A")
         ref = ne.continuous_jacobian(q, f, w, b_a, b_w)
         if _close(got, ref, 1e-10):
             continue
         if not np.any(got[6:10]):
-            raise CheckFailed("the rows of q̇ in A (rows 6:10) are all zero. Hint: q̇ = ½ q ⊗ (0, ω − b_ω) "
-                              "is linear in q (as ½ Ω(ω − b_ω) q) and in ω − b_ω (as ½ Ξ(q)(ω − b_ω)): its "
-                              "derivatives with respect to q and to b_ω fill the blocks (q, q) and (q, b_ω); "
-                              "the rows of q are missing")
+            raise CheckFailed("the rows of q̇ in A (rows 6:10) are all zero. Hint: the rows of q are missing: q̇ is "
+                              "linear in q and in ω − b_ω, and its derivatives with respect to q and to b_ω fill "
+                              "the blocks (q, q) and (q, b_ω) (lecture 08 §9)"
+                              + hints.formula(": q̇ = ½ q ⊗ (0, ω − b_ω) = ½ Ω(ω − b_ω) q = ½ Ξ(q)(ω − b_ω)"))
         R = so3.quat_to_matrix(q)
+        F = hints.formula
         alternatives = {
-            ("v", "q"): [(ne.rotate_jacobian(q, f), "use the bias-corrected force: ∂(R(q)(f − b_a))/∂q"),
-                         (ne.rotate_jacobian(q, f + b_a), "the bias is subtracted: a = f − b_a")],
-            ("v", "b_a"): [(-np.eye(3), "b_a is in the body frame: v̇ = R(q)(f − b_a) + g, so −R(q)"),
-                           (-R.T, "transpose: −R(q), not −R(q)ᵀ")],
-            ("q", "q"): [(ne.quat_omega(w - b_w), "q̇ = ½ q ⊗ (0, ω − b_ω): the factor ½ is missing"),
-                         (0.5 * ne.quat_omega(w), "use the bias-corrected rate: ½ Ω(ω − b_ω)"),
-                         (0.5 * ne.quat_omega(w + b_w), "the bias is subtracted: ½ Ω(ω − b_ω)")],
-            ("q", "b_ω"): [(0.5 * ne.quat_xi(q), "q̇ = ½ q ⊗ (0, ω − b_ω): the gyro bias enters with a minus "
-                                                 "sign, ∂q̇/∂b_ω = −½ Ξ(q)"),
-                           (-ne.quat_xi(q), "the factor ½ is missing: ∂q̇/∂b_ω = −½ Ξ(q)")],
+            ("v", "q"): [(ne.rotate_jacobian(q, f), "use the bias-corrected force (lecture 08 §9)"
+                                                    + F(": ∂(R(q)(f − b_a))/∂q")),
+                         (ne.rotate_jacobian(q, f + b_a), "the bias is subtracted, not added (lecture 08 §9)"
+                                                          + F(": a = f − b_a"))],
+            ("v", "b_a"): [(-np.eye(3), "b_a is in the body frame: it reaches v̇ rotated (lecture 08 §9)"
+                                        + F(": v̇ = R(q)(f − b_a) + g, so −R(q)")),
+                           (-R.T, "transpose: R(q) maps body to navigation (lecture 08 §9)"
+                                  + F(": −R(q), not −R(q)ᵀ"))],
+            ("q", "q"): [(ne.quat_omega(w - b_w), "the factor ½ of the quaternion kinematics is missing "
+                                                  "(lecture 08 §9)" + F(": q̇ = ½ q ⊗ (0, ω − b_ω), so ½ Ω(ω − b_ω)")),
+                         (0.5 * ne.quat_omega(w), "use the bias-corrected rate (lecture 08 §9)"
+                                                  + F(": ½ Ω(ω − b_ω)")),
+                         (0.5 * ne.quat_omega(w + b_w), "the bias is subtracted, not added (lecture 08 §9)"
+                                                        + F(": ½ Ω(ω − b_ω)"))],
+            ("q", "b_ω"): [(0.5 * ne.quat_xi(q), "the gyro bias enters q̇ with a minus sign (lecture 08 §9)"
+                                                 + F(": q̇ = ½ q ⊗ (0, ω − b_ω), ∂q̇/∂b_ω = −½ Ξ(q)")),
+                           (-ne.quat_xi(q), "the factor ½ of the quaternion kinematics is missing (lecture 08 §9)"
+                                            + F(": ∂q̇/∂b_ω = −½ Ξ(q)"))],
         }
-        _expect_blocks(got, ref, _NOMINAL, _NOMINAL, "A", _A_FORMULAS, alternatives,
-                       fallback="ṗ = v, v̇ = R(q)(f − b_a) + g, q̇ = ½ q ⊗ (0, ω − b_ω)")
+        _expect_blocks(got, ref, _NOMINAL, _NOMINAL, "A", _A_FORMULAS, alternatives, section="lecture 08 §9",
+                       fallback=hints.formula("ṗ = v, v̇ = R(q)(f − b_a) + g, q̇ = ½ q ⊗ (0, ω − b_ω)"))
 
 
 # ---------------------------------------------------------------------------------------
@@ -1129,7 +1414,9 @@ def check_eskf_fd_transition(transition_by_finite_differences):
     g = np.array([0.0, 0.0, -9.8092])
     T = _steps()[3]
     for x, f, w in _cases()[:2]:
-        got = expect_shape(call(transition_by_finite_differences, x, f, w, T, g), (15, 15), "J")
+        value = call(transition_by_finite_differences, x, f, w, T, g)
+        _expect_double(value, "J")
+        got = expect_shape(value, (15, 15), "J")
         ref = _fd_transition(x, f, w, T, g)
         if _close(got, ref, 1e-5):
             continue
@@ -1138,34 +1425,38 @@ def check_eskf_fd_transition(transition_by_finite_differences):
             (np.zeros((15, 15)), "J is all zero: nothing was measured. For each of the 15 error components, "
                                  "make true states with a small error ±h in that component only, step them "
                                  "and the nominal state through the same IMU step, and difference the errors "
-                                 "after the step: that is column i of J"),
+                                 "after the step: that is column i of J (lecture 08 §2)"),
             (-ref, "sign: with error = nominal − true, the true state with error d is the nominal state with "
                    "d removed (inject(x, d)), and the error after the step is nominal − true again; a "
-                   "sign flipped in one of the two flips J"),
+                   "sign flipped in one of the two flips J (lecture 08 §2)"),
             (_fd_transition(x, f, w, T, g, error=_error_nav_frame),
-             "the attitude error lives in the body frame: Ř = R Exp(δθ), so δθ = Log(Rᵀ Ř), not Log(Ř Rᵀ) "
-             "(the navigation-frame error)"),
+             "the attitude error lives in the body frame, not the navigation frame (lecture 08 §1)"
+             + hints.formula(": Ř = R Exp(δθ), so δθ = Log(Rᵀ Ř), not Log(Ř Rᵀ)")),
             (np.eye(15), "J = I: the errors were compared before the step; step the nominal state and each "
-                         "true state through nominal_step first"),
+                         "true state through nominal_step first (lecture 08 §2)"),
             (_fd_transition(x, f, w, T, g, step_nominal=False),
              "the nominal state was compared before the step: measure each stepped true state against the "
-             "nominal state after the same step (nominal_step(x, ...))"),
+             "nominal state after the same step (nominal_step(x, ...); lecture 08 §2)"),
             (_fd_transition(x, f, w, T, g, step_true=False),
              "the true states were compared before the step: push each of them through the same IMU step "
-             "(nominal_step) as the nominal state"),
-            (2 * ref, "factor 2: a central difference divides by 2h (the perturbations are +h and −h)"),
+             "(nominal_step) as the nominal state (lecture 08 §2)"),
+            (2 * ref, "factor 2: a central difference divides by 2h, the distance between +h and −h "
+                      "(lecture 08 §2)"),
             (ref.T, "transposed: column i of J is the derivative with respect to the i-th error component "
-                    "before the step (J[:, i]), row i that of the i-th component after it"),
+                    "before the step (J[:, i]), row i that of the i-th component after it (lecture 08 §2)"),
             (F, "that is F = I + F_t T itself, not a measurement: J must come from nominal_step by "
-                "differences (it equals F only up to O(T²))"),
+                "differences (it equals F only up to O(T²); lecture 08 §2)"),
         ]
-        for wrong, why in mistakes:
-            if _close(got, wrong, 1e-5):
-                raise CheckFailed(f"J is wrong. Hint: {why}")
+        why = known_mistake([got], [None], mistakes, close=lambda mine, wrong, _: _close(mine, wrong, 1e-5),
+                            evaluate=lambda wrong, _: wrong)
+        if why:
+            raise CheckFailed(f"J is wrong. Hint: {why}")
         err = np.abs(np.asarray(got, dtype=float) - ref).max()
         off_F = np.abs(np.asarray(got, dtype=float) - F).max()
         raise CheckFailed(f"J differs from a central-difference Jacobian of one IMU step by {err:.3g} "
                           f"(and from F = I + F_t T by {off_F:.3g}, where O(T²) ≈ {T * T:.0e} is expected). "
-                          "Hint: column i: (error after the step of the true state with error +h e_i, minus "
-                          "that with −h e_i) / 2h, with error = nominal − true and the true state "
-                          "inject(x, ±h e_i)")
+                          "Hint: each column of J is a central difference of the error after the step, "
+                          "with respect to one error component before it (lecture 08 §2)"
+                          + hints.formula(": column i = (error after the step of the true state with error "
+                                          "+h e_i, minus that with −h e_i) / 2h, with error = nominal − true and "
+                                          "the true state inject(x, ±h e_i)"))

@@ -8,6 +8,9 @@ where a transpose changes the shape; covariances are full (non-diagonal) and ani
 diagonal, or R and R R are different numbers. Reference and wrong values are computed once
 per process (``functools.cache``).
 
+Hints come in tiers (:mod:`kalman_course.checks.hints`): the concept, the mistake and the
+lecture section first (§3–§6 of lecture 02), the formula marked for tier 2.
+
 Tolerance: the default ``rtol=1e-7, atol=1e-9`` of :func:`expect_close`. The condition
 numbers of the Σ_yy here stay below 300, so correct variants (an explicit inverse, a solve,
 a Cholesky factor, the gain form, the precision form through the inverse of the whole joint
@@ -31,10 +34,24 @@ import functools
 import numpy as np
 
 from kalman_course.checks import cases as inputs
+from kalman_course.checks import hints
 from kalman_course.core import gaussians
 from kalman_course.core.linalg import symmetrise
 from kalman_course.checks.harness import (CheckFailed, as_array, call, check, expect_close,
                                           expect_symmetric, type_name)
+
+
+#: The formulas the hints point to, shown at hint tier 2 (:mod:`kalman_course.checks.hints`).
+CONDITIONAL_MEAN = hints.formula("μ_x|y = μ_x + Σ_xy Σ_yy⁻¹ (y − μ_y)")
+CONDITIONAL_COV = hints.formula("Σ_x|y = Σ_xx − Σ_xy Σ_yy⁻¹ Σ_yx")
+MAPPED_COV = hints.formula("Σ_yy = G Σ_xx Gᵀ + R")
+CROSS_COV = hints.formula("Σ_xy = Σ_xx Gᵀ")
+
+
+def _about(why: str, section: str, formula: str) -> str:
+    """A hint at its two tiers: ``why`` (the concept or the mistake) and where the lecture
+    derives it, then the marked ``formula`` (shown at tier 2)."""
+    return f"{why} (lecture 02 §{section}): {formula}"
 
 
 def random_joint(n: int, m: int, seed, scales=None):
@@ -107,8 +124,8 @@ _CONDITIONAL_SHAPES = ((2, 2, 6, (1.0, 3.0, 0.5, 2.0)),
 
 _CONDITIONAL_SHAPE_HINT = ("with n ≠ m the shapes do not fit, so a block is transposed "
                            "somewhere in the function (mean or covariance): Σ_xy is (n, m), "
-                           "Σ_yx = Σ_xyᵀ is (m, n); Σ_yy⁻¹ Σ_yx is solve(Σ_yy, Σ_xy.T), and "
-                           "the innovation y − μ_y has m entries")
+                           "Σ_yx = Σ_xyᵀ is (m, n), and the innovation y − μ_y has m entries "
+                           "(lecture 02 §4): " + hints.formula("Σ_yy⁻¹ Σ_yx is solve(Σ_yy, Σ_xy.T)"))
 
 
 @functools.cache
@@ -162,52 +179,56 @@ def _conditional_case(joint, y_noise):
     K = np.linalg.solve(Syy, Sxy.T).T                        # Σ_xy Σ_yy⁻¹
     K_diag = Sxy / np.diag(Syy)                              # only the variances of y
     mean_mistakes = [
-        (mu_x + Sxy @ innovation, "the gain is Σ_xy Σ_yy⁻¹: the innovation y − μ_y must be "
-                                  "weighted by the inverse of Σ_yy"),
-        (mu_x + Sxy @ Syy @ innovation, "Σ_yy multiplies the innovation where its inverse "
-                                        "belongs: Σ_xy Σ_yy⁻¹ (y − μ_y), a solve with Σ_yy"),
-        (mu_x - K @ innovation, "sign: the mean moves towards the observation, "
-                                "μ_x + Σ_xy Σ_yy⁻¹ (y − μ_y)"),
-        (mu_x, "the mean did not move: add Σ_xy Σ_yy⁻¹ (y − μ_y)"),
-        (mu_x + K @ y, "the mean of y is missing from the innovation: subtract μ_y from y"),
+        (mu_x + Sxy @ innovation, _about("the innovation y − μ_y must be weighted by the inverse of "
+                                         "Σ_yy", "4", hints.formula("the gain is Σ_xy Σ_yy⁻¹"))),
+        (mu_x + Sxy @ Syy @ innovation, _about("Σ_yy multiplies the innovation where its inverse "
+                                               "belongs, a solve with Σ_yy", "4", CONDITIONAL_MEAN)),
+        (mu_x - K @ innovation, _about("sign: the mean moves towards the observation", "4",
+                                       CONDITIONAL_MEAN)),
+        (mu_x, _about("the mean did not move: observing y pulls it", "4", CONDITIONAL_MEAN)),
+        (mu_x + K @ y, "the mean of y is missing from the innovation: subtract μ_y from y "
+                       "(lecture 02 §4)"),
         (mu_x + K_diag @ innovation, "only the diagonal of Σ_yy (the variances) was used, "
                                      "as in the one-dimensional formula: the components of "
                                      "y are correlated (Σ_yy is not diagonal), so weigh "
                                      "the innovation by the inverse of the whole matrix "
-                                     "Σ_yy, not by each variance alone"),
+                                     "Σ_yy, not by each variance alone (lecture 02 §4)"),
     ]
     cov_mistakes = [
-        (Sxx + K @ Sxy.T, "sign: observing y removes uncertainty, Σ_xx − Σ_xy Σ_yy⁻¹ Σ_yx"),
-        (Sxx, "the covariance did not shrink: subtract Σ_xy Σ_yy⁻¹ Σ_yx (the Schur complement)"),
-        (Sxx - Sxy @ Sxy.T, "Σ_yy⁻¹ is missing between Σ_xy and Σ_yx"),
-        (Sxx - Sxy @ Syy @ Sxy.T, "Σ_yy stands where its inverse belongs: Σ_xy Σ_yy⁻¹ Σ_yx"),
+        (Sxx + K @ Sxy.T, _about("sign: observing y removes uncertainty", "4", CONDITIONAL_COV)),
+        (Sxx, _about("the covariance did not shrink: observing y removes the part of x's uncertainty "
+                     "that y explains (the Schur complement)", "3 and §4", CONDITIONAL_COV)),
+        (Sxx - Sxy @ Sxy.T, "Σ_yy⁻¹ is missing between Σ_xy and Σ_yx (lecture 02 §4)"),
+        (Sxx - Sxy @ Syy @ Sxy.T, _about("Σ_yy stands where its inverse belongs", "4", CONDITIONAL_COV)),
         (Sxx - K_diag @ Sxy.T, "only the diagonal of Σ_yy (the variances) was used, as in "
                                "the one-dimensional formula: y's components are correlated, "
-                               "invert the whole matrix Σ_yy"),
+                               "invert the whole matrix Σ_yy (lecture 02 §4)"),
     ]
     if n == m:
         mean_mistakes += [
             (mu_x + Sxy.T @ np.linalg.solve(Syy, innovation),
-             "Σ_xy is transposed: the gain is Σ_xy Σ_yy⁻¹ with Σ_xy of shape (n, m)"),
-            (mu_x + K @ (y - mu_x), "the innovation subtracts the mean of y: y − μ_y, not μ_x"),
-            (mu_y + K @ innovation, "the conditional mean of x starts from μ_x, not μ_y"),
+             _about("Σ_xy is transposed: Σ_xy has shape (n, m)", "4",
+                    hints.formula("the gain is Σ_xy Σ_yy⁻¹"))),
+            (mu_x + K @ (y - mu_x), "the innovation subtracts the mean of y: y − μ_y, not μ_x "
+                                    "(lecture 02 §4)"),
+            (mu_y + K @ innovation, "the conditional mean of x starts from μ_x, not μ_y (lecture 02 §4)"),
             (mu_x + np.linalg.solve(Syy, Sxy) @ innovation,
-             "Σ_yy⁻¹ Σ_xy is the gain transposed (and in the wrong order): the gain is "
-             "Σ_xy Σ_yy⁻¹ = solve(Σ_yy, Σ_xy.T).T"),
+             _about("Σ_yy⁻¹ Σ_xy is the gain transposed (and in the wrong order)", "4",
+                    hints.formula("the gain is Σ_xy Σ_yy⁻¹ = solve(Σ_yy, Σ_xy.T).T"))),
         ]
         cov_mistakes += [
             (Sxx - Sxy @ np.linalg.solve(Syy, Sxy),
-             "Σ_yx = Σ_xyᵀ: the last factor is transposed, Σ_xy Σ_yy⁻¹ Σ_xyᵀ"),
+             _about("the last factor is transposed: Σ_yx = Σ_xyᵀ", "4", CONDITIONAL_COV)),
             (Sxx - Sxy.T @ np.linalg.solve(Syy, Sxy),
-             "Σ_xy and Σ_yx are swapped (transposed): Σ_xx − Σ_xy Σ_yy⁻¹ Σ_xyᵀ"),
+             _about("Σ_xy and Σ_yx are swapped (transposed)", "4", CONDITIONAL_COV)),
             (Syy - Sxy.T @ np.linalg.solve(Sxx, Sxy),
              "that is the covariance of y given x (the Schur complement of Σ_xx, what is "
              "left of y's uncertainty once x is known). Here y is observed and x is "
              "unknown: start from Σ_xx and take the Schur complement of Σ_yy (lecture 02 "
              "§3 and §4)"),
             (Sxx - np.linalg.solve(Syy, Sxy.T) @ Sxy,
-             "the factors are in the wrong order (matrix products do not commute): "
-             "Σ_xy Σ_yy⁻¹ Σ_yx"),
+             _about("the factors are in the wrong order (matrix products do not commute)", "4",
+                    CONDITIONAL_COV)),
         ]
     # a learner who symmetrises the result (as the exercise's return line does) turns a
     # non-symmetric wrong covariance into its symmetric part: name that one too
@@ -235,7 +256,9 @@ def check_conditional_mean(gaussian_conditional):
     for args, mean, _, mistakes, _ in _conditional_cases():
         got, _ = _call_conditional(gaussian_conditional, args)
         expect_close(got, mean, f"conditional mean (n = {len(mean)}, m = {len(args[1])})",
-                     mistakes=mistakes, hint="μ_x|y = μ_x + Σ_xy Σ_yy⁻¹ (y − μ_y)")
+                     mistakes=mistakes,
+                     hint=_about("the conditional mean corrects μ_x by how far y is from its mean, "
+                                 "weighted through the covariances", "4", CONDITIONAL_MEAN))
 
 
 @check
@@ -248,9 +271,11 @@ def check_conditional_covariance(gaussian_conditional):
         arr = as_array(got, what)
         if n != m and arr.shape == (m, m):
             raise CheckFailed(f"{what} has shape {arr.shape}, the size of y: the covariance of x "
-                              f"given y is (n, n) = ({n}, {n}), Σ_xx − Σ_xy Σ_yy⁻¹ Σ_yx (not the "
-                              "covariance of y given x)")
-        expect_close(arr, cov, what, mistakes=mistakes, hint="Σ_x|y = Σ_xx − Σ_xy Σ_yy⁻¹ Σ_yx")
+                              f"given y is (n, n) = ({n}, {n}) (not the covariance of y given x; "
+                              "lecture 02 §4): " + CONDITIONAL_COV)
+        expect_close(arr, cov, what, mistakes=mistakes,
+                     hint=_about("the conditional covariance is the Schur complement of Σ_yy", "3 and §4",
+                                 CONDITIONAL_COV))
         expect_symmetric(arr, what)
 
 
@@ -259,8 +284,8 @@ def check_conditional_covariance(gaussian_conditional):
 # ---------------------------------------------------------------------------------------
 
 _LINEAR_SHAPE_HINT = ("with n ≠ m the shapes do not fit, so a matrix is transposed somewhere: G "
-                      "is (m, n); μ_y = G μ_x, Σ_yy = G Σ_xx Gᵀ + R is (m, m), Σ_xy = Σ_xx Gᵀ is "
-                      "(n, m)")
+                      "is (m, n), Σ_yy is (m, m), Σ_xy is (n, m) (lecture 02 §5): "
+                      + hints.formula("μ_y = G μ_x, Σ_yy = G Σ_xx Gᵀ + R, Σ_xy = Σ_xx Gᵀ"))
 
 
 @functools.cache
@@ -307,15 +332,15 @@ def _linear_case(rng: np.random.Generator, n: int, m: int, square_sigmas):
     mu_y, Syy, Sxy = gaussians.linear_map(mu_x, Sxx, G, R)
     GSG = G @ Sxx @ G.T
     syy_mistakes = [
-        (GSG, "R is missing: the observation noise adds its covariance, Σ_yy = G Σ_xx Gᵀ + R"),
+        (GSG, _about("R is missing: the observation noise adds its covariance", "5", MAPPED_COV)),
         (GSG + R @ R, "R is already a covariance (variances): add R, not R R (do not square "
-                      "it)"),
+                      "it; lecture 02 §5)"),
         (GSG + _sqrtm(R), "R holds variances: add R, not its square root (a standard "
-                          "deviation)"),
-        (GSG + np.linalg.inv(R), "add the noise covariance R itself, not R⁻¹"),
-        (GSG - R, "sign: independent noise adds its covariance, + R"),
+                          "deviation; lecture 02 §5)"),
+        (GSG + np.linalg.inv(R), "add the noise covariance R itself, not R⁻¹ (lecture 02 §5)"),
+        (GSG - R, "sign: independent noise adds its covariance, + R (lecture 02 §5)"),
         (R, "Σ_yy is only the noise: the uncertainty of x, carried through the map G, adds "
-            "to it"),
+            "to it (lecture 02 §5)"),
     ]
     if not np.allclose(R, np.diag(np.diag(R))):
         syy_mistakes += [
@@ -331,31 +356,32 @@ def _linear_case(rng: np.random.Generator, n: int, m: int, square_sigmas):
         syy_mistakes.append((GSG + root, "R holds variances: add R, not its element-wise "
                                          "square root (a standard deviation)"))
     sxy_mistakes = [
-        (Sxx, "Σ_xy = Σ_xx Gᵀ: the map G must appear"),
-        (Sxx @ G.T @ np.linalg.inv(Syy), "that is the gain Σ_xy Σ_yy⁻¹ of the next chapter; "
-                                         "the cross-covariance is Σ_xy = Σ_xx Gᵀ"),
+        (Sxx, _about("the map G must appear in Σ_xy", "5", CROSS_COV)),
+        (Sxx @ G.T @ np.linalg.inv(Syy), _about("that is the gain Σ_xy Σ_yy⁻¹ of the next chapter, not "
+                                                "the cross-covariance", "5", CROSS_COV)),
     ]
     mu_mistakes = []
     if n == m:
         syy_mistakes += [
-            (G.T @ Sxx @ G + R, "G and Gᵀ are swapped (transposed): Σ_yy = G Σ_xx Gᵀ + R"),
-            (G @ Sxx @ G + R, "the transpose of the last G is missing: G Σ_xx Gᵀ + R"),
+            (G.T @ Sxx @ G + R, _about("G and Gᵀ are swapped (transposed)", "5", MAPPED_COV)),
+            (G @ Sxx @ G + R, _about("the transpose of the last G is missing", "5", MAPPED_COV)),
             (GSG + G @ R @ G.T, "the noise was pushed through the map: in y = G x + n the "
                                 "noise is added after the map, in the measurement's own "
                                 "axes and units (R is m × m), so R is added as it is, "
                                 "not as G R Gᵀ"),
-            (Sxx + R, "Σ_yy = G Σ_xx Gᵀ + R: the map G must appear"),
+            (Sxx + R, _about("the map G must appear in Σ_yy", "5", MAPPED_COV)),
         ]
         sxy_mistakes += [
             (G @ Sxx, "that is Σ_yx = G Σ_xx, the transpose of Σ_xy: Σ_xy = "
                       "E[(x − μ_x)(y − μ_y)ᵀ] has one row per component of x and one column "
                       "per component of y, shape (n, m)"),
-            (G.T @ Sxx, "Σ_xy = Σ_xx Gᵀ: Σ_xx comes first (Gᵀ Σ_xx is another matrix)"),
-            (Sxx @ G.T + R, "the noise is independent of x: it adds nothing to Σ_xy = Σ_xx Gᵀ"),
+            (G.T @ Sxx, _about("Σ_xx comes first (Gᵀ Σ_xx is another matrix)", "5", CROSS_COV)),
+            (Sxx @ G.T + R, _about("the noise is independent of x: it adds nothing to Σ_xy", "5",
+                                   CROSS_COV)),
         ]
         mu_mistakes += [
-            (mu_x, "the mean goes through the map: μ_y = G μ_x"),
-            (G.T @ mu_x, "G is transposed: μ_y = G μ_x"),
+            (mu_x, _about("the mean goes through the map", "5", hints.formula("μ_y = G μ_x"))),
+            (G.T @ mu_x, _about("G is transposed", "5", hints.formula("μ_y = G μ_x"))),
         ]
     return (mu_x, Sxx, G, R), (mu_y, Syy, Sxy), (mu_mistakes, syy_mistakes, sxy_mistakes)
 
@@ -394,15 +420,18 @@ def check_linear_map_moments(linear_map_moments):
         except (TypeError, ValueError):                  # non-numeric: compared below
             pass
         expect_close(got_mu, mu_y, f"mu_y ({sizes})", mistakes=mu_mistakes,
-                     hint="the noise has zero mean, so μ_y = G μ_x")
+                     hint=_about("the noise has zero mean, so the mean of y is the mean of x carried "
+                                 "through the map", "5", hints.formula("μ_y = G μ_x")))
         expect_close(got_syy, Syy, f"Sigma_yy ({sizes})", mistakes=syy_mistakes,
-                     hint="Σ_yy = G Σ_xx Gᵀ + R")
+                     hint=_about("Σ_yy is the covariance of x carried through the map G, plus the "
+                                 "noise's", "5", MAPPED_COV))
         arr = as_array(got_sxy, f"Sigma_xy ({sizes})")
         if n != m and arr.shape == (m, n):
             raise CheckFailed(f"Sigma_xy ({sizes}) has shape {arr.shape}: that is Σ_yx = G Σ_xx, "
-                              f"its transpose; Σ_xy = Σ_xx Gᵀ has shape (n, m) = ({n}, {m})")
+                              f"its transpose; Σ_xy has shape (n, m) = ({n}, {m}) (lecture 02 §5): "
+                              + CROSS_COV)
         expect_close(arr, Sxy, f"Sigma_xy ({sizes})", mistakes=sxy_mistakes,
-                     hint="Σ_xy = Σ_xx Gᵀ, shape (n, m)")
+                     hint=_about("Σ_xy is the cross-covariance of x and y, shape (n, m)", "5", CROSS_COV))
 
 
 # ---------------------------------------------------------------------------------------
@@ -463,11 +492,12 @@ def _fusion_case(rng: np.random.Generator, n: int, spread: float):
                                  "the inverses (the information) add up"),
         (Sa, "the covariance did not shrink: the second estimate adds information"),
         (symmetrise(Sa - K_swapped @ Sa),
-         "the weights are swapped: moving from estimate a towards b, the gain grows with a's "
-         "uncertainty, Σ_a (Σ_a + Σ_b)⁻¹ (b's gain, Σ_b (Σ_a + Σ_b)⁻¹, moves from b towards a)"),
+         _about("the weights are swapped: moving from estimate a towards b, the gain grows with a's "
+                "uncertainty", "6", hints.formula("Σ_a (Σ_a + Σ_b)⁻¹ (b's gain, Σ_b (Σ_a + Σ_b)⁻¹, "
+                                                  "moves from b towards a)"))),
         (symmetrise(Sa @ Sb @ np.linalg.inv(Sa + Sb)),
-         "the factors are in the wrong order (matrix products do not commute): the gain "
-         "Σ_a (Σ_a + Σ_b)⁻¹ multiplies Σ_b from the left"),
+         _about("the factors are in the wrong order (matrix products do not commute)", "6",
+                hints.formula("the gain Σ_a (Σ_a + Σ_b)⁻¹ multiplies Σ_b from the left"))),
     ]
     mean_mistakes = [
         (elementwise @ (mu_a / np.diag(Sa) + mu_b / np.diag(Sb)),

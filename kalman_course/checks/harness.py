@@ -11,13 +11,17 @@ message says what is wrong and, where the mistake is a known one, why.
 
 from __future__ import annotations
 
+import contextvars
 import functools
+import re
 import types
 from typing import Callable, Iterable
 
 import numpy as np
 
-from kalman_course.checks.kernel_agent import call_quietly, global_names
+from kalman_course.checks import hints
+from kalman_course.core import linalg
+from kalman_course.checks.kernel_agent import call_watched, global_names
 from kalman_course.checks.plain_data import Opaque
 from kalman_course.checks.remote import LearnerFunction, LearnerNamespace, session_of
 
@@ -34,7 +38,7 @@ class CheckFailed(AssertionError):
         """What IPython shows for a failed check (JupyterLab, nbval): the hint first, then
         what the check saw, and none of the grader's own frames (they are not the learner's
         to read). ``str(exc)``, which gradebooks record, is unchanged."""
-        name, _, rest = str(self).partition(": ")
+        name, _, rest = hints.strip(str(self)).partition(": ")
         if not rest:  # a message without the "<check>: " prefix
             name, rest = "check", str(self)
         saw, _, hint = rest.partition(" Hint: ")
@@ -99,13 +103,20 @@ def check(fn: Callable | None = None, *, uses: tuple[str, ...] | dict[str, str] 
     name = fn.__name__[len(CHECK_PREFIX):]
 
     def judge(*args, **kwargs):
+        token = _MISBEHAVED.set([])
         try:
             fn(*args, **kwargs)
+            _raise_first_misbehaviour(_MISBEHAVED.get())
         except CheckFailed as exc:
             upstream = _upstream_of(uses, args[0]) if args else None
-            if upstream is not None:
-                raise CheckFailed(f"{name}: {upstream}") from None
-            raise CheckFailed(f"{name}: {exc}") from None
+            # an argument changed in place or single precision explains a wrong value that follows it
+            cause = _misbehaviour_message(_MISBEHAVED.get(), kinds=("changed", "precision"))
+            message = upstream or cause or _with_error_hint(_undefined_name(str(exc)))
+            raise CheckFailed(_rendered(name, f"{name}: {message}")) from None
+        else:
+            _LAST_FAILURE.pop(name, None)
+        finally:
+            _MISBEHAVED.reset(token)
 
     @functools.wraps(fn)
     def run(*args, **kwargs):
@@ -117,6 +128,33 @@ def check(fn: Callable | None = None, *, uses: tuple[str, ...] | dict[str, str] 
     run.judge = judge  # the verdict alone: returns, or raises CheckFailed; prints nothing
     _register(name, run)
     return run
+
+
+_NAME_ERROR = re.compile(r"(\w+) raised NameError: name '(\w+)' is not defined")
+
+
+def _undefined_name(message: str) -> str:
+    """A failure caused by a name the learner's code uses and never defined, told as such
+    (whatever hint the check would add about shapes or formulas), else ``message``."""
+    found = _NAME_ERROR.search(message)
+    if found is None:
+        return message
+    fn, name = found.groups()
+    return (f"{fn} uses {name}, which is not defined. Hint: run the cell that defines {name} first; "
+            "if that cell raised an error, fix it, then run it again")
+
+
+#: check name -> the tier-1 text of its last failure in this process (a grader cell run again)
+_LAST_FAILURE: dict[str, str] = {}
+
+
+def _rendered(name: str, marked: str) -> str:
+    """The failure message at the tier the learner is at: tier 2 when this check failed the
+    same way the last time it ran here and hints escalate (see :mod:`hints`)."""
+    first = hints.render(marked, 1)
+    again = hints.escalates() and _LAST_FAILURE.get(name) == first
+    _LAST_FAILURE[name] = first
+    return hints.render(marked, 2) if again or hints.tier() >= 2 else first
 
 
 def referenced_names(learner_fn) -> set[str]:
@@ -147,6 +185,9 @@ def _upstream_of(uses: dict[str, str], learner_fn) -> str | None:
                             learner_namespace(learner_fn))
 
 
+_UPSTREAM = re.compile(r"^this function calls your (\w+), which (.*)$", re.S)
+
+
 def upstream_failure(uses: dict[str, str], namespace) -> str | None:
     """The message for the first used learner function that fails its own check, or None.
 
@@ -169,9 +210,14 @@ def upstream_failure(uses: dict[str, str], namespace) -> str | None:
         try:
             dependency_check.judge(learner_fn)
         except CheckFailed as exc:
-            first_line = str(exc).split("\n")[0]
-            return (f"your {dependency} fails its own check, and this function uses it: fix "
-                    f"{dependency} first ({first_line})")
+            # what the other check saw, without its name and hint (its own grader cell gives those)
+            text = hints.strip(str(exc)).split("\n")[0].removeprefix(f"{check_name}: ")
+            chained = _UPSTREAM.match(text)
+            if chained:  # the dependency's own failure is upstream of it: name the root
+                return f"this function calls your {dependency}, which calls your {chained[1]}, which {chained[2]}"
+            saw = text.split(" Hint: ")[0].rstrip(".")
+            return (f"this function calls your {dependency}, which does not pass its own check yet: "
+                    f"{saw}. Hint: fix {dependency} first; its grader cell's hint says how")
     return None
 
 
@@ -214,15 +260,103 @@ def call(fn: Callable, *args, label: str | None = None):
                                   f"reference is not available while grading ({raised.message}); write the "
                                   "computation yourself")
             raise CheckFailed(f"{label} raised {raised.type_name}: {raised.message}")
+        behaviour = answer.get("behaviour")
+        _note_misbehaviour(label, behaviour if isinstance(behaviour, list) else [])
         return answer["result"]
     if not callable(fn):
         raise CheckFailed(f"expected a function, got {type(fn).__name__}")
     try:
-        return call_quietly(fn, args)
+        result, behaviour = call_watched(fn, args)
     except CheckFailed:
         raise
     except Exception as exc:  # the learner's code may raise anything
         raise CheckFailed(f"{label} raised {type(exc).__name__}: {exc}") from None
+    _note_misbehaviour(label, behaviour)
+    return result
+
+
+#: The properties of well-behaved code that the learner's calls broke during the running check:
+#: (function label, kind, detail). Judged after the check's values (a wrong value's hint names
+#: the mistake better), so a check fails on them only when every value was right.
+_MISBEHAVED: contextvars.ContextVar[list | None] = contextvars.ContextVar("misbehaved", default=None)
+
+
+def _note_misbehaviour(label: str, behaviour: list) -> None:
+    noted = _MISBEHAVED.get()
+    for item in behaviour:
+        if isinstance(item, list) and len(item) in (2, 3) and all(isinstance(x, str) for x in item):
+            # [kind, detail] of the call itself, [kind, detail, name] of a learner function it drove
+            who = item[2] if len(item) == 3 else label
+            if noted is None:  # a call outside a check (a test, a notebook helper): fail at once
+                _raise_first_misbehaviour([(who, *item[:2])])
+            noted.append((who, *item[:2]))
+
+
+#: What each broken property is told as, most telling first ({who}: the function, {detail}: what).
+_MISBEHAVIOUR = {
+    "changed": "{who} changed its argument {detail} in place. Hint: work on a copy (P = P + Q, not P += Q; "
+               "or {detail} = {detail}.copy() first): the caller's arrays must be as they were after the call",
+    "precision": "{who} computes in single precision: {detail}. Hint: keep NumPy's default float64; float32 "
+                 "keeps about 7 digits, and a filter's covariance loses more than that in a few steps",
+    "aliased": "{who} returns its argument {detail} itself, or a view of it. Hint: return a new array "
+               "({detail}.copy()): a caller who changes the result would change their own input",
+    "unrepeatable": "{who} gave different results for the same inputs. Hint: it depends on something "
+                    "besides its arguments: unseeded randomness, a global it changes, or a default "
+                    "argument it modifies",
+}
+
+
+def _misbehaviour_message(noted, kinds=tuple(_MISBEHAVIOUR)) -> str | None:
+    """The message for the most telling broken property among ``noted`` of ``kinds``, or None."""
+    for kind in kinds:
+        for who, noted_kind, detail in noted or ():
+            if noted_kind == kind:
+                return _MISBEHAVIOUR[kind].format(who=who, detail=detail)
+    return None
+
+
+def _raise_first_misbehaviour(noted: list) -> None:
+    """Fail on the most telling property of well-behaved code that a call broke (see
+    :func:`kernel_agent.call_watched`): the caller's arguments left as they were, float64
+    precision, results that are new arrays, the same answer to the same question."""
+    message = _misbehaviour_message(noted)
+    if message:
+        raise CheckFailed(message)
+
+
+#: A hint for an exception the learner's code raised, by what its message says, where the
+#: check gave none (first match wins).
+_ERROR_HINTS = (
+    (re.compile(r"raised (ValueError|LinAlgError): .*(broadcast|shape|align|dimension|matmul|size)", re.S | re.I),
+     "two arrays' shapes do not fit together: check which rows and columns each slice or block takes, "
+     "each matrix's orientation (a transpose?), and the order of the arguments you pass"),
+    (re.compile(r"raised IndexError: "),
+     "an index is past the end of an array: check the state's layout (which entries are which) in the "
+     "lecture, and that slices start and stop where the blocks do"),
+    (re.compile(r"raised LinAlgError: .*singular", re.I),
+     "a matrix your code inverts is singular: check that it is the one the lecture inverts (with its "
+     "noise term) and that no block of it was left at zero"),
+    (re.compile(r"raised TypeError: .*(argument|positional|unexpected keyword)", re.I),
+     "a function was called with the wrong arguments: check each call against its signature, in order"),
+    (re.compile(r"raised TypeError: "),
+     "a value has the wrong type for what is done to it: check the types of the arguments and results"),
+    (re.compile(r"raised (ZeroDivisionError|FloatingPointError): "),
+     "a division by zero: check the denominator, and whether the case needs its own limit"),
+    (re.compile(r"raised (\w+): "),
+     "the error is in your code: its message says what went wrong; the traceback, when you run the "
+     "function yourself on the check's inputs, says where"),
+)
+
+
+def _with_error_hint(message: str) -> str:
+    """``message``, with a hint added when it reports an exception of the learner's code and
+    the check gave no hint."""
+    if " Hint: " in message:
+        return message
+    for pattern, hint in _ERROR_HINTS:
+        if pattern.search(message):
+            return f"{message}. Hint: {hint}"
+    return message
 
 
 def type_name(value) -> str:
@@ -291,3 +425,64 @@ def expect_symmetric(value, what: str) -> np.ndarray:
         raise CheckFailed(f"{what} is not symmetric. Hint: a covariance is always symmetric; "
                           "check the order of the products (A @ P @ A.T, not A @ P @ A)")
     return arr
+
+
+def with_symmetrised(mistakes):
+    """Each known wrong value, then its symmetrised form with the same hint (a learner's last
+    line often symmetrises whatever the formula gave), as a list."""
+    out = []
+    for wrong, why in mistakes:
+        wrong = np.asarray(wrong, dtype=float)
+        out.append((wrong, why))
+        if wrong.ndim == 2 and wrong.shape[0] == wrong.shape[1]:
+            out.append((linalg.symmetrise(wrong), why))
+    return out
+
+
+def known_mistake(got, cases, mistakes, close, *, evaluate=None, case: int | None = None) -> str | None:
+    """Which known mistake explains a learner's results over a check's cases, or None.
+
+    The one place every check asks "which plausible wrong formula gives exactly what the
+    learner's code gave?".
+
+    Parameters
+    ----------
+    got : sequence
+        The learner's result on each case.
+    cases : sequence
+        The check's cases, as the mistakes' formulas take them.
+    mistakes : iterable of (callable, str)
+        ``(formula, hint)``: ``evaluate(formula, case)`` is the wrong result on a case.
+    close : callable
+        ``close(learner_result, wrong_result, k)``: whether they agree on case ``k``. A wrong
+        result that could not be evaluated is passed as None.
+    evaluate : callable, optional
+        How a formula is applied to a case (default ``formula(case)``); an exception counts
+        as "could not be evaluated".
+    case : int, optional
+        When no mistake explains every case: the hint of the first that agrees on this case
+        alone (the first case the learner got wrong), else None.
+
+    Returns
+    -------
+    str or None
+        The hint of the first mistake that reproduces the learner's result on every case.
+    """
+    evaluate = evaluate or (lambda formula, c: formula(c))
+
+    def wrong_on(formula, c):
+        try:
+            return evaluate(formula, c)
+        except Exception:  # a wrong formula may not apply to a case (a shape, a singular matrix)
+            return None
+
+    tried = []
+    for formula, why in mistakes:
+        wrong = [wrong_on(formula, c) for c in cases]
+        if all(close(g, w, k) for k, (g, w) in enumerate(zip(got, wrong))):
+            return why
+        tried.append((why, wrong))
+    if case is not None:
+        return next((why for why, wrong in tried if close(got[case], wrong[case], case)), None)
+    return None
+

@@ -14,7 +14,17 @@ a reading longer than g and KITTI means.
 
 When a result is wrong, the check looks for the plausible mistake that reproduces the
 learner's value on *every* case (a wrong formula is consistent; a coincidence on one case is
-not) and names it; otherwise it reports the first case that differs, with the formula.
+not; :func:`harness.known_mistake`) and names it; otherwise it reports the first case that
+differs, with what the step computes. Hints come in tiers (:mod:`hints`): the concept, the
+mistake and the lecture section first, the formula on request. A result in single precision
+is named as such before any value is compared (the tolerances are below float32's rounding).
+
+After the attitude step's cases pass, a sweep of the singular regimes runs (48 calls):
+angles |ω̄ T| from 1e-13 to 3 rad, two per decade where a small-angle switch lives (1e-11 …
+1e-2), about an axis and its opposite, with steps of 1e-4, 0.01 and 0.5 s (rates from 2e-13
+to 20 rad/s), rotation vectors within 1e-9 and 1e-3 rad of π on both sides, and large turns
+from an attitude just short of a half turn. It names a cut-off or series that errs beyond the
+tolerance (a step returned unchanged below 1e-9 rad errs by 1e-9, ten tolerances).
 
 Under a graded run's seed (:mod:`kalman_course.checks.cases`) every case is drawn anew from
 its family: other KITTI samples (real readings, true attitudes) with other made-up biases;
@@ -22,7 +32,8 @@ the synthetic cases' attitudes, rates, readings, biases and time steps; the writ
 cases' values (a constant rate and its step, the bias that cancels the rate, a zero rate at
 an attitude within 10⁻³ … 10⁻⁸ rad of a half turn, random directions of the tiny rates at
 about 1e-12, 1e-6 and 1e-3 rad/s, the resting IMU's velocity, heading and step, the constant
-acceleration); the whole run's simulated trajectory (another seed, 3–5 s, clean readings) and
+acceleration); the attitude sweep's axes, start attitude and angles (each within its
+half-decade); the whole run's simulated trajectory (another seed, 3–5 s, clean readings) and
 its KITTI slice (another start and 300–500 samples of the real ``turns`` readings, redrawn
 until every listed loop mistake changes the run and no two of them agree); and the
 levelling's tilts (10–30°, 55–85°, 0.5 … 10⁻³ rad short of upside down, 5e-7 … 1e-5 rad),
@@ -39,7 +50,8 @@ import numpy as np
 from kalman_course.core import so3
 from kalman_course.core.angles import wrap_angle
 from kalman_course.checks import cases as inputs  # `cases` names the lists of cases below
-from kalman_course.checks.harness import CheckFailed, as_array, call, check, expect_shape
+from kalman_course.checks import hints
+from kalman_course.checks.harness import CheckFailed, as_array, call, check, expect_shape, known_mistake
 from kalman_course.data import imu_trajectory, load_kitti
 from kalman_course.core.imu import NavState, dead_reckon
 
@@ -238,18 +250,6 @@ def _same(value, ref, atol):
     return value.shape == np.shape(ref) and bool(np.allclose(value, ref, rtol=0.0, atol=atol))
 
 
-def _explained_by(mistake, values, cases, atol) -> bool:
-    """True if ``mistake(case)`` reproduces the learner's value on every case."""
-    for value, case in zip(values, cases):
-        try:
-            wrong = np.asarray(mistake(case), dtype=float)
-        except Exception:  # a mistake formula may not apply to a case (e.g. a shape)
-            return False
-        if not _same(value, wrong, atol):
-            return False
-    return True
-
-
 def _grade(values, cases, what, atol, mistakes, hint, patterns=()):
     """Fail unless every value matches its case's ``ref``; name the mistake if one fits all.
 
@@ -266,7 +266,8 @@ def _grade(values, cases, what, atol, mistakes, hint, patterns=()):
     mistakes : sequence of (callable, str)
         ``(case -> wrong value, hint)``; computed only when a value is wrong.
     hint : str
-        The formula, given when no listed mistake explains the values.
+        What the step computes, given when no listed mistake explains the values (its
+        formula marked with :func:`hints.formula`).
     patterns : sequence of (callable, str)
         ``(predicate(value, case) -> bool, hint)`` for a mistake that no single wrong value
         describes (an approximation): it is named if the predicate holds on every case.
@@ -274,20 +275,27 @@ def _grade(values, cases, what, atol, mistakes, hint, patterns=()):
     failing = [k for k, (v, c) in enumerate(zip(values, cases)) if not _same(v, c["ref"], atol)]
     if not failing:
         return
-    for mistake, why in mistakes:
-        if _explained_by(mistake, values, cases, atol):
-            raise CheckFailed(f"{what} is wrong. Hint: {why}")
-    for pattern, why in patterns:
-        try:
-            fits = all(pattern(v, c) for v, c in zip(values, cases))
-        except Exception:  # a pattern may not apply to a malformed value
-            fits = False
-        if fits:
-            raise CheckFailed(f"{what} is wrong. Hint: {why}")
+    def close(value, wrong, _):
+        return wrong is not None and _same(value, np.asarray(wrong, dtype=float), atol)
+
+    why = known_mistake(values, cases, mistakes, close=close)
+    # a pattern is "evaluated" on a case into the test of the learner's value there
+    why = why or known_mistake(values, cases, patterns, evaluate=lambda pattern, c: lambda value: pattern(value, c),
+                               close=_holds)
+    if why:
+        raise CheckFailed(f"{what} is wrong. Hint: {why}")
     k = failing[0]
     err = np.max(np.abs(values[k] - cases[k]["ref"]))
     raise CheckFailed(f"{what} differs from the reference on the case '{cases[k]['name']}' "
                       f"(max abs error {err:.3g}). Hint: {hint}")
+
+
+def _holds(value, test, _=None) -> bool:
+    """Whether ``test(value)`` is true (False when it could not be built or raises)."""
+    try:
+        return test is not None and bool(test(value))
+    except Exception:  # a pattern may not apply to a malformed value
+        return False
 
 
 _BROADCAST = ("the vectors are of shape (3,) and the rotations (3, 3); a mean of two of them, "
@@ -306,8 +314,23 @@ def _call_step(fn, *args, hint=""):
         raise
 
 
+def _expect_double(value, what) -> None:
+    """Fail on a floating result narrower than float64 before its values are compared: the
+    tolerances (1e-9 … 1e-10 on entries of order 1 … 100) are below float32's rounding (about
+    6e-8 relative), so a comparison would report a wrong value instead of the cause."""
+    dtypes = [np.asarray(v).dtype for v in (value if isinstance(value, (tuple, list)) else (value,))
+              if isinstance(v, (np.ndarray, np.generic))]
+    narrow = [d for d in dtypes if d.kind in "fc" and d.itemsize < (8 if d.kind == "f" else 16)]
+    if narrow:
+        raise CheckFailed(f"{what} is {narrow[0].name}: it was computed in single precision. Hint: keep "
+                          "NumPy's default float64 (no .astype(np.float32), no dtype=np.float32); float32 keeps "
+                          "about 7 digits, and dead reckoning accumulates its rounding at every step")
+
+
 def _result(value, shape, what, nan_hint=""):
-    """The learner's value as an array of ``shape``; NaN/inf fail with ``nan_hint``."""
+    """The learner's value as an array of ``shape``; single precision fails first, NaN/inf
+    with ``nan_hint``."""
+    _expect_double(value, what)
     try:
         return expect_shape(value, shape, what)
     except CheckFailed as exc:
@@ -333,59 +356,158 @@ def _first_order(value, c):
 
 
 _MIDPOINT_RATE = "½(ω₀ + ω₁) − b_ω"
-_ZERO_RATE = ("at ω̄ T = 0 Rodrigues' formula divides 0 by 0: below a small angle use its series "
-              "(Exp(φ) ≈ I + [φ]× + ½[φ]×²), or so3.Exp, which does")
+_F = hints.formula
+_ZERO_RATE = ("at ω̄ T = 0 Rodrigues' formula divides 0 by 0: below a small angle use its series, or "
+              "so3.Exp, which does (lecture 07 §1)" + _F(": Exp(φ) ≈ I + [φ]× + ½[φ]×²"))
+_STEP_ROTATION = _F(f": R_next = R Exp(ω̄ T) with ω̄ = {_MIDPOINT_RATE}")
 _ATTITUDE_MISTAKES = [
     (lambda c: so3.exp(_phi(c)) @ c["R"],
-     "ω is measured in the body frame, so its rotation multiplies on the right: "
-     "R_next = R Exp(ω̄ T), not Exp(ω̄ T) R (that would rotate about navigation-frame axes)"),
+     "ω is measured in the body frame, so its rotation multiplies on the right (lecture 07 §3: Ṙ = R[ω]×)"
+     + _F(": R_next = R Exp(ω̄ T), not Exp(ω̄ T) R") + " (the left would rotate about navigation-frame axes)"),
     (lambda c: c["R"].T @ so3.exp(_phi(c)),
-     "do not transpose R: R is R_nb (body → navigation) and R_next = R Exp(ω̄ T)"),
+     "do not transpose R: R is R_nb (body → navigation), and the step turns it as it is (lecture 07 §3)"
+     + _F(": R_next = R Exp(ω̄ T)")),
     (lambda c: (c["R"] @ so3.exp(_phi(c))).T,
-     "R_next is R Exp(ω̄ T), not its transpose (R_nb maps body to navigation coordinates)"),
+     "R_next is transposed: return R_nb, which maps body to navigation coordinates (lecture 07 §3)"
+     + _F(": R_next = R Exp(ω̄ T), not its transpose")),
     (lambda c: c["R"] @ so3.exp(_phi(c)).T,
-     "sign: the body turns by +ω̄ T, so R_next = R Exp(+ω̄ T); Exp(−ω̄ T) = Exp(ω̄ T)ᵀ turns it back"),
+     "sign: the body turns forwards by the measured rate; the transpose of the step's rotation turns it back "
+     "(lecture 07 §3)" + _F(": R_next = R Exp(+ω̄ T); Exp(−ω̄ T) = Exp(ω̄ T)ᵀ")),
     (lambda c: c["R"] @ so3.exp(_phi(c, 0.5 * (c["w0"] + c["w1"]))),
-     f"subtract the gyro bias: ω̄ = {_MIDPOINT_RATE} (the bias was left out)"),
+     "subtract the gyro bias: the bias was left out of the rate (lecture 07 §4)" + _F(f": ω̄ = {_MIDPOINT_RATE}")),
     (lambda c: c["R"] @ so3.exp(_phi(c, 0.5 * (c["w0"] + c["w1"]) + c["b_w"])),
-     f"the gyro bias is subtracted, not added: ω̄ = {_MIDPOINT_RATE}"),
+     "the gyro bias is subtracted, not added (lecture 07 §4)" + _F(f": ω̄ = {_MIDPOINT_RATE}")),
     (lambda c: c["R"] @ so3.exp(_phi(c, 0.5 * (c["w0"] + c["w1"] - c["b_w"]))),
-     f"the gyro bias is subtracted in full from each rate, not halved: ω̄ = {_MIDPOINT_RATE}"),
+     "the gyro bias is subtracted in full from each rate, not halved (lecture 07 §4)" + _F(f": ω̄ = {_MIDPOINT_RATE}")),
     (lambda c: c["R"] @ so3.exp(_phi(c, c["w0"] - c["b_w"])),
-     f"midpoint rule: use the mean of the two rates, ω̄ = {_MIDPOINT_RATE}, not the rate at the "
-     "start of the step (that is Euler's rule)"),
+     "midpoint rule: use the mean of the two rates, not the rate at the start of the step (that is Euler's "
+     "rule; lecture 07 §4)" + _F(f": ω̄ = {_MIDPOINT_RATE}")),
     (lambda c: c["R"] @ so3.exp(_phi(c, c["w1"] - c["b_w"])),
-     f"midpoint rule: use the mean of the two rates, ω̄ = {_MIDPOINT_RATE}, not the rate at the "
-     "end of the step"),
+     "midpoint rule: use the mean of the two rates, not the rate at the end of the step (lecture 07 §4)"
+     + _F(f": ω̄ = {_MIDPOINT_RATE}")),
     (lambda c: c["R"] @ so3.exp(_phi(c, c["w0"] + c["w1"] - c["b_w"])),
-     f"midpoint rule: the mean of the two rates is half their sum, ω̄ = {_MIDPOINT_RATE}"),
+     "midpoint rule: the mean of the two rates is half their sum (lecture 07 §4)" + _F(f": ω̄ = {_MIDPOINT_RATE}")),
     (lambda c: c["R"] @ so3.exp(_phi(c, dt=1.0)),
-     "the rotation vector is a rate times the step: φ = ω̄ T (rad/s × s); multiply by dt"),
+     "the rotation vector is a rate times the step (rad/s × s): multiply by dt (lecture 07 §4)" + _F(": φ = ω̄ T")),
     (lambda c: c["R"] @ so3.exp(_phi(c, dt=c["dt"] ** 2)),
-     "the rotation vector is φ = ω̄ T, with T, not T²"),
+     "the rotation vector is the rate times T, not T² (lecture 07 §4)" + _F(": φ = ω̄ T")),
     (lambda c: c["R"] @ so3.exp(_phi(c, dt=0.5 * c["dt"])),
-     "the rotation over the step is φ = ω̄ T, not half of it"),
+     "the rotation over the step is the rate times the whole step, not half of it (lecture 07 §4)"
+     + _F(": φ = ω̄ T")),
     (lambda c: c["R"] @ so3.exp(np.deg2rad(_phi(c))),
-     "the gyro reads radians per second already: do not convert from degrees (φ = ω̄ T in radians)"),
+     "the gyro reads radians per second already: do not convert from degrees (lecture 07 §4)"),
     (lambda c: c["R"] @ so3.exp(np.rad2deg(_phi(c))),
-     "the gyro reads radians per second already: do not convert to degrees (Exp takes radians)"),
+     "the gyro reads radians per second already: do not convert to degrees (Exp takes radians; lecture 07 §1)"),
     (lambda c: c["R"] @ so3.exp(0.5 * (c["w0"] - c["b_w"]) * c["dt"]) @ so3.exp(0.5 * (c["w1"] - c["b_w"]) * c["dt"]),
-     f"the midpoint rule turns once, by the mean rate: R Exp(ω̄ T) with ω̄ = {_MIDPOINT_RATE}, not two "
-     "half-steps Exp(ω₀T/2) Exp(ω₁T/2) (rotations do not commute)"),
+     "the midpoint rule turns once, by the mean rate, not by two half-steps (rotations do not commute; "
+     "lecture 07 §4)" + _F(f": R Exp(ω̄ T) with ω̄ = {_MIDPOINT_RATE}, not Exp(ω₀T/2) Exp(ω₁T/2)")),
     (lambda c: c["R"] @ so3.exp((np.mean([c["w0"], c["w1"]]) - c["b_w"]) * c["dt"]),
      "the mean is over the two rates (axis 0 of [ω₀, ω₁]), not over all six numbers: "
      "np.mean([w0, w1], axis=0)"),
     (lambda c: c["R"],
-     "the attitude did not change: R_next = R Exp(ω̄ T)"),
+     "the attitude did not change: the step must turn R by the step's rotation (lecture 07 §3)" + _STEP_ROTATION),
     (lambda c: so3.exp(_phi(c)),
-     "compose with the previous attitude: R_next = R Exp(ω̄ T), not Exp(ω̄ T) alone"),
+     "compose with the previous attitude: the step's rotation alone is not the new attitude (lecture 07 §3)"
+     + _F(": R_next = R Exp(ω̄ T), not Exp(ω̄ T) alone")),
 ]
 
 
-@check
-def check_attitude_step(attitude_step):
-    """``attitude_step(R, w0, w1, b_w, dt)`` returns the attitude at the next sample."""
-    cases = _attitude_cases()
+#: Angles |ω̄ T| (rad) of the attitude step's sweep: one per decade where nothing switches, two
+#: per decade from 1e-11 to 1e-2, where a learner's small-angle switch or series cut-off lies.
+_SWEPT_ANGLES = np.r_[1e-13, 1e-12, np.logspace(-11, -2, 19), 0.1, 1.0, 3.0]
+
+#: Steps (s) the sweep cycles through: far above, at and far below an IMU's interval (the
+#: smallest angle with the longest step: a rate of 2e-13 rad/s).
+_SWEPT_DT = (0.5, 0.01, 1e-4)
+
+
+def _sweep_cases():
+    """The attitude step's sweep: (name, R, w0, w1, b_w, dt) over the singular regimes.
+
+    Each angle of :data:`_SWEPT_ANGLES` below 1e-2 rad about an axis and about its opposite
+    (every third axis the diagonal, so that all components change sign), the two with two
+    different steps from :data:`_SWEPT_DT`, so that the mean rates |ω̄| run from 2e-13 to
+    20 rad/s (the larger angles about one of the two); rotation vectors within 1e-9 and 1e-3
+    rad of π on both sides; large turns from an attitude within 1e-9 rad of a half turn. A
+    small-angle switch or a series kept too far up errs there by the term it drops; a cut-off
+    below 1e-10 rad errs by less than the tolerance (and passes: it is harmless).
+    """
+    rng = inputs.rng("imu.attitude.sweep", 17)
+    R0 = so3.exp(rng.uniform(0.3, 3.0) * _random_axis(rng))
+    R_half = so3.exp((np.pi - 1e-9) * _random_axis(rng))
+    angles = _SWEPT_ANGLES
+    if inputs.drawing():      # under a run seed every angle moves within its half-decade too
+        angles = angles * inputs.log_uniform(rng, 0.8, 1.25, len(angles))
+    raw = []
+    for k, angle in enumerate(angles):
+        u = np.ones(3) / np.sqrt(3.0) if k % 3 == 0 else _random_axis(rng)
+        for j, sign in enumerate((1.0, -1.0) if angle < 1e-2 else (1.0 if k % 2 else -1.0,)):
+            # the two signs with two different steps: a switch on the rate, not the angle, shows too
+            dt = max(_SWEPT_DT[(k + j) % len(_SWEPT_DT)], angle / 20.0)     # no rate above 20 rad/s
+            w = sign * angle / dt * u
+            # two different rates and a bias: the bias-corrected mean is what the step turns by
+            spread = 0.3 * angle / dt * _random_axis(rng)
+            bias = 0.01 * _random_axis(rng)
+            raw.append((f"|ω̄ T| = {angle:.2g} rad ({'+' if sign > 0 else '−'} axis, dt = {dt:g} s)",
+                        R_half if angle >= 1.0 else R0, w + bias + spread, w + bias - spread, bias, dt))
+    for k, gap in enumerate((1e-9, 1e-3)):
+        u = _random_axis(rng)
+        sign = 1.0 if k % 2 == 0 else -1.0
+        for angle in (np.pi - gap, np.pi + gap):
+            raw.append((f"|ω̄ T| = π {'−' if angle < np.pi else '+'} {gap:.0e} rad", R0,
+                        sign * angle * u, sign * angle * u, np.zeros(3), 1.0))
+    return raw
+
+
+@functools.lru_cache(maxsize=None)
+def _attitude_sweep():
+    """The sweep's cases with their references (see :func:`_sweep_cases`)."""
+    return tuple(dict(name=n, R=R, w0=w0, w1=w1, b_w=b, dt=dt, ref=reference_attitude_step(R, w0, w1, b, dt))
+                 for n, R, w0, w1, b, dt in _sweep_cases())
+
+
+def _judge_sweep(values, cases) -> None:
+    """Fail on the first sweep case that differs, naming the regime (the main cases passed)."""
+    failing = [k for k, (v, c) in enumerate(zip(values, cases)) if not _same(v, c["ref"], ATTITUDE_ATOL)]
+    if not failing:
+        return
+    angles = [float(np.linalg.norm(_phi(c))) for c in cases]
+    small = [k for k in failing if angles[k] < 1e-2]
+    if small:
+        k = max(small, key=lambda j: angles[j])
+        unchanged = all(_same(values[j], cases[j]["R"], 1e-15) for j in small)
+        err = float(np.max(np.abs(values[k] - cases[k]["ref"])))
+        what = ("your step returns R unchanged there, which drops the whole rotation" if unchanged else
+                "your small-angle branch (a truncated series) drops a term that is larger than the tolerance "
+                "there")
+        raise CheckFailed(
+            f"R_next is wrong for small rotations, up to |ω̄ T| = {angles[k]:.2g} rad (case '{cases[k]['name']}', "
+            f"max abs error {err:.3g}): {what}. Hint: small rotations: below a small angle, a series must keep "
+            "every term that exceeds about 1e-10 (lecture 07 §1); switch over at a smaller angle, or keep more "
+            "terms, or use so3.Exp" + _F(": Exp(φ) ≈ I + [φ]× + ½[φ]×² errs by |φ|³/6"))
+    k = failing[0]
+    err = float(np.max(np.abs(values[k] - cases[k]["ref"])))
+    raise CheckFailed(
+        f"R_next is wrong for a large rotation, |ω̄ T| = {angles[k]:.3g} rad (case '{cases[k]['name']}', max abs "
+        f"error {err:.3g}). Hint: Exp is defined for every angle, π and beyond included: no wrapping of the "
+        "angle or of the axis is needed, and a hand-made Log/Exp pair must stay exact near π (lecture 07 §1)"
+        + _F(": Exp(φ) = I + (sin θ/θ)[φ]× + ((1 − cos θ)/θ²)[φ]×²"))
+
+
+_SMALL_UNCHANGED = ("small rotations: your step returns R unchanged below some angle, which drops the whole "
+                    "rotation (an error of |φ|, above the tolerance 1e-10 from |φ| = 1e-10 on); below a small "
+                    "angle, a series must keep every term that exceeds about 1e-10 (lecture 07 §1), or use so3.Exp"
+                    + _F(": Exp(φ) ≈ I + [φ]× + ½[φ]×²"))
+
+
+def _unchanged_when_small(value, c) -> bool:
+    """Whether ``value`` is right, or R unchanged on a case whose rotation is small (< 1e-2 rad)."""
+    return _same(value, c["ref"], ATTITUDE_ATOL) or (float(np.linalg.norm(_phi(c))) < 1e-2
+                                                    and _same(value, c["R"], 1e-15))
+
+
+def _attitude_values(attitude_step, cases):
+    """The learner's R_next on each case, as (3, 3) rotations."""
     values = []
     for c in cases:
         zero = not np.any(_phi(c))
@@ -397,14 +519,30 @@ def check_attitude_step(attitude_step):
             err = np.max(np.abs(got.T @ got - np.eye(3)))
             raise CheckFailed(
                 f"R_next on the case '{c['name']}' is not a rotation matrix (|RᵀR − I| = {err:.2g}). "
-                "Hint: compose with Exp(φ) (Rodrigues' formula), not with the first-order I + [φ]×; "
-                "a quaternion must be normalised to unit length before it becomes a matrix")
+                "Hint: compose with the exponential of the step's rotation vector, not with the first-order "
+                "I + [φ]× or another truncated series (lecture 07 §3); a quaternion must be normalised to unit "
+                "length before it becomes a matrix")
         values.append(got)
-    _grade(values, cases, "R_next", ATTITUDE_ATOL, _ATTITUDE_MISTAKES,
-           hint=f"R_next = R Exp(ω̄ T) with ω̄ = {_MIDPOINT_RATE}", patterns=[(
-               _first_order, "R_next agrees with R Exp(ω̄ T) only to first order in φ = ω̄ T: a "
+    return values
+
+
+@check
+def check_attitude_step(attitude_step):
+    """``attitude_step(R, w0, w1, b_w, dt)`` returns the attitude at the next sample.
+
+    The main cases name the mistakes; then a sweep of the singular regimes
+    (:func:`_sweep_cases`) finds a small-angle switch or series that errs beyond the tolerance.
+    """
+    cases = _attitude_cases()
+    _grade(_attitude_values(attitude_step, cases), cases, "R_next", ATTITUDE_ATOL, _ATTITUDE_MISTAKES,
+           hint="the step composes R with the exponential of the step's rotation, the bias-corrected mean "
+                "rate times T (lecture 07 §3–4)" + _STEP_ROTATION, patterns=[(
+               _first_order, "R_next agrees with the exponential only to first order in φ = ω̄ T: a "
                "first-order I + [φ]× (even re-orthonormalised) or a truncated series is not the "
-               "exponential; use Rodrigues' formula or so3.Exp(φ)")])
+               "exponential (lecture 07 §3); use Rodrigues' formula or so3.Exp(φ)"),
+               (_unchanged_when_small, _SMALL_UNCHANGED)])
+    sweep = _attitude_sweep()
+    _judge_sweep(_attitude_values(attitude_step, sweep), sweep)
 
 
 # ----------------------------------------------------------------------------------------
@@ -434,11 +572,13 @@ def _v(c, acc, gravity=None, T=None, v0=None):
     return v + (acc + g) * T
 
 
-_GRAVITY_SIGN = ("gravity: lecture 07 §4 writes a = R (f − b_a) + g with g = (0, 0, −9.81) pointing down, "
-                 "so g is added (the seed notes write − g with g pointing up: the same formula for the "
-                 "other sign of g). A resting accelerometer reads f = +9.81 up, and then a = 0")
+_A = _F(": a = R (f − b_a) + g")
+_V_NEXT = _F(": v_next = v + (½(a₀ + a₁) + g) T, with aᵢ = Rᵢ(fᵢ − b_a)")
+_GRAVITY_SIGN = ("gravity: lecture 07 §4 adds g with g = (0, 0, −9.81) pointing down (the seed notes subtract "
+                 "it with g pointing up: the same formula for the other sign of g). A resting accelerometer "
+                 "reads f = +9.81 up, and then the acceleration is zero" + _A)
 _HARD_CODED = ("use the gravity vector g handed in (it differs between the cases), not a hard-coded "
-               "constant: a = R (f − b_a) + g")
+               "constant (lecture 07 §4)" + _A)
 _VELOCITY_MISTAKES = [
     (lambda c: _v(c, _acc(c), gravity=-c["args"][6]), _GRAVITY_SIGN),
     (lambda c: _v(c, _acc(c), gravity=np.array([0.0, 0.0, -9.81])), _HARD_CODED),
@@ -450,63 +590,70 @@ _VELOCITY_MISTAKES = [
     (lambda c: _v(c, _acc(c), gravity=np.array([0.0, 0.0, -9.8092])), _HARD_CODED),
     (lambda c: _v(c, _acc(c), gravity=np.array([0.0, 0.0, 9.8092])), _HARD_CODED),
     (lambda c: _v(c, _acc(c), gravity=np.zeros(3)),
-     "gravity is missing: the accelerometer measures specific force, a = R (f − b_a) + g"),
+     "gravity is missing: the accelerometer measures specific force, not acceleration (lecture 07 §4)" + _A),
     (lambda c: _v(c, _acc(c), gravity=0.5 * c["args"][6]),
-     "gravity is added once, in full: v_next = v + (½(a₀ + a₁) + g) T, with aᵢ = Rᵢ(fᵢ − b_a)"),
+     "gravity is added once, in full, not halved with the readings (lecture 07 §4)" + _V_NEXT),
     (lambda c: _v(c, _acc(c), gravity=2.0 * c["args"][6]),
-     "gravity is added once, not once per reading: v_next = v + (½(a₀ + a₁) + g) T"),
+     "gravity is added once, not once per reading (lecture 07 §4)" + _V_NEXT),
     (lambda c: _v(c, 0.5 * (c["args"][1] @ (c["args"][3] - c["args"][5] + c["args"][6])
                             + c["args"][2] @ (c["args"][4] - c["args"][5] + c["args"][6])), gravity=np.zeros(3)),
-     "gravity is a navigation-frame vector: add g after rotating the body-frame reading, "
-     "a = R (f − b_a) + g, not R (f − b_a + g)"),
+     "gravity is a navigation-frame vector: add g after rotating the body-frame reading, not before "
+     "(lecture 07 §4)" + _F(": a = R (f − b_a) + g, not R (f − b_a + g)")),
     (lambda c: _v(c, _acc(c)) - c["args"][6] * c["args"][7] + c["args"][6],
-     "gravity is an acceleration too: it changes the velocity by g T, not by g"),
+     "gravity is an acceleration too: it changes the velocity by g T, not by g (lecture 07 §4)"),
     (lambda c: _v(c, _acc(c, bias=np.zeros(3))),
-     "subtract the accelerometer bias from each reading: R (f − b_a)"),
+     "subtract the accelerometer bias from each reading (lecture 07 §4)" + _F(": R (f − b_a)")),
     (lambda c: _v(c, 0.5 * (c["args"][1] + c["args"][2]) @ (0.5 * (c["args"][3] + c["args"][4]) - c["args"][5])),
-     "rotate each reading with the attitude at its own time, then average: ½(R₀(f₀ − b_a) + R₁(f₁ − b_a)), "
-     "not the mean attitude times the mean reading"),
+     "rotate each reading with the attitude at its own time, then average; not the mean attitude times the "
+     "mean reading (lecture 07 §4)" + _F(": ½(R₀(f₀ − b_a) + R₁(f₁ − b_a))")),
     (lambda c: _v(c, _mid_step_attitude(c) @ (0.5 * (c["args"][3] + c["args"][4]) - c["args"][5])),
      "the midpoint rule rotates each reading with the attitude at its own time, R₀ for f₀ and R₁ for f₁, "
-     "then averages; one mid-step attitude for the mean reading is another (not the lecture's) rule"),
+     "then averages; one mid-step attitude for the mean reading is another (not the lecture's) rule "
+     "(lecture 07 §4)"),
     (lambda c: _v(c, _acc(c) + 0.5 * c["args"][2] @ c["args"][5]),
-     "subtract the accelerometer bias from each reading, R₀(f₀ − b_a) and R₁(f₁ − b_a), not from one only"),
+     "subtract the accelerometer bias from each reading, not from one only (lecture 07 §4)"
+     + _F(": R₀(f₀ − b_a) and R₁(f₁ − b_a)")),
     (lambda c: _v(c, _acc(c) + 0.5 * c["args"][1] @ c["args"][5]),
-     "subtract the accelerometer bias from each reading, R₀(f₀ − b_a) and R₁(f₁ − b_a), not from one only"),
+     "subtract the accelerometer bias from each reading, not from one only (lecture 07 §4)"
+     + _F(": R₀(f₀ − b_a) and R₁(f₁ − b_a)")),
     (lambda c: _v(c, _acc(c, bias=-c["args"][5])),
-     "the accelerometer bias is subtracted, not added: R (f − b_a)"),
+     "the accelerometer bias is subtracted, not added (lecture 07 §4)" + _F(": R (f − b_a)")),
     (lambda c: _v(c, _acc(c, bias=np.zeros(3)) - c["args"][5]),
-     "the accelerometer bias is a body-frame quantity: subtract it before rotating, R (f − b_a), "
-     "not R f − b_a"),
+     "the accelerometer bias is a body-frame quantity: subtract it before rotating (lecture 07 §4)"
+     + _F(": R (f − b_a), not R f − b_a")),
     (lambda c: _v(c, _acc(c, R1=c["args"][1])),
-     "the acceleration at the end of the step uses the NEW attitude: a₁ = R₁(f₁ − b_a), not R₀"),
+     "the acceleration at the end of the step uses the NEW attitude, not R₀ (lecture 07 §4)"
+     + _F(": a₁ = R₁(f₁ − b_a)")),
     (lambda c: _v(c, _acc(c, R0=c["args"][2])),
-     "the acceleration at the start of the step uses the OLD attitude: a₀ = R₀(f₀ − b_a), not R₁"),
+     "the acceleration at the start of the step uses the OLD attitude, not R₁ (lecture 07 §4)"
+     + _F(": a₀ = R₀(f₀ − b_a)")),
     (lambda c: _v(c, 0.5 * (c["args"][2] @ (c["args"][3] - c["args"][5])
                             + c["args"][1] @ (c["args"][4] - c["args"][5]))),
-     "each reading is rotated with the attitude at its own time: R₀ with f₀, R₁ with f₁ (they are swapped)"),
+     "each reading is rotated with the attitude at its own time: R₀ with f₀, R₁ with f₁ (they are swapped; "
+     "lecture 07 §4)"),
     (lambda c: _v(c, _acc(c, R0=np.eye(3), R1=np.eye(3))),
-     "the readings are in the body frame: rotate them into the navigation frame, a = R (f − b_a) + g"),
+     "the readings are in the body frame: rotate them into the navigation frame (lecture 07 §4)" + _A),
     (lambda c: _v(c, _acc(c, R0=c["args"][1].T, R1=c["args"][2].T)),
-     "do not transpose R: R = R_nb maps body-frame readings to the navigation frame, a = R (f − b_a) + g"),
+     "do not transpose R: R = R_nb maps body-frame readings to the navigation frame (lecture 07 §4)" + _A),
     (lambda c: _v(c, c["args"][1] @ (c["args"][3] - c["args"][5])),
-     "midpoint rule: average the accelerations at both ends of the step, ½(a₀ + a₁), not the start "
-     "one only (that is Euler's rule)"),
+     "midpoint rule: average the accelerations at both ends of the step, not the start one only (that is "
+     "Euler's rule; lecture 07 §4)" + _F(": ½(a₀ + a₁)")),
     (lambda c: _v(c, c["args"][2] @ (c["args"][4] - c["args"][5])),
-     "midpoint rule: average the accelerations at both ends of the step, ½(a₀ + a₁), not the end one only"),
+     "midpoint rule: average the accelerations at both ends of the step, not the end one only (lecture 07 §4)"
+     + _F(": ½(a₀ + a₁)")),
     (lambda c: _v(c, 2.0 * _acc(c)),
-     "midpoint rule: the mean acceleration is half the sum, ½(R₀(f₀ − b_a) + R₁(f₁ − b_a))"),
+     "midpoint rule: the mean acceleration is half the sum (lecture 07 §4)" + _F(": ½(R₀(f₀ − b_a) + R₁(f₁ − b_a))")),
     (lambda c: _v(c, 2.0 * _acc(c), gravity=2.0 * c["args"][6]),
-     "midpoint rule: the mean of the two accelerations is half their sum, ½(a₀ + a₁) (gravity "
-     "included, it counts once)"),
+     "midpoint rule: the mean of the two accelerations is half their sum (gravity included, it counts once; "
+     "lecture 07 §4)" + _F(": ½(a₀ + a₁)")),
     (lambda c: _v(c, _acc(c), T=c["args"][7] ** 2),
-     "the velocity changes by a T, with T, not T²: v_next = v + (½(a₀ + a₁) + g) T"),
+     "the velocity changes by the acceleration times T, not T² (lecture 07 §4)" + _V_NEXT),
     (lambda c: _v(c, _acc(c), T=1.0),
-     "multiply the acceleration by the step: v_next = v + (½(a₀ + a₁) + g) T (m/s² × s)"),
+     "multiply the acceleration by the step (m/s² × s; lecture 07 §4)" + _V_NEXT),
     (lambda c: _v(c, _acc(c), T=0.5 * c["args"][7]),
-     "the velocity changes by a T over the whole step, not by a T/2"),
+     "the velocity changes by the acceleration over the whole step, not by a T/2 (lecture 07 §4)" + _V_NEXT),
     (lambda c: _v(c, _acc(c), v0=np.zeros(3)),
-     "v_next is the previous velocity plus the increment: v + (½(a₀ + a₁) + g) T"),
+     "v_next is the previous velocity plus the increment (lecture 07 §4)" + _V_NEXT),
 ]
 
 
@@ -517,38 +664,43 @@ def check_velocity_step(velocity_step):
     values = [_result(_call_step(velocity_step, *c["args"]), (3,), f"v_next on the case '{c['name']}'")
               for c in cases]
     _grade(values, cases, "v_next", VELOCITY_ATOL, _VELOCITY_MISTAKES,
-           hint="v_next = v + ½(R₀(f₀ − b_a) + R₁(f₁ − b_a)) T + g T, with R₁ the attitude at the end of "
-                "the step and g = (0, 0, −9.81) added")
+           hint="the velocity step averages the navigation-frame accelerations at both ends of the step, each "
+                "reading rotated with the attitude at its own time, and adds gravity (lecture 07 §4)"
+                + _F(": v_next = v + ½(R₀(f₀ − b_a) + R₁(f₁ − b_a)) T + g T, with R₁ the attitude at the end of "
+                     "the step and g = (0, 0, −9.81) added"))
 
 
 # ----------------------------------------------------------------------------------------
 # The position step
 # ----------------------------------------------------------------------------------------
 
+_P_NEXT = _F(": p_next = p + ½(v₀ + v₁) T")
 _POSITION_MISTAKES = [
     (lambda c: c["args"][0] + c["args"][2] * c["args"][3],
-     "midpoint rule: use the mean velocity ½(v₀ + v₁), not the new one"),
+     "midpoint rule: use the mean velocity of the step, not the new one (lecture 07 §4)" + _P_NEXT),
     (lambda c: c["args"][0] + c["args"][1] * c["args"][3],
-     "midpoint rule: use the mean velocity ½(v₀ + v₁), not the old one (that is Euler's rule)"),
+     "midpoint rule: use the mean velocity of the step, not the old one (that is Euler's rule; lecture 07 §4)"
+     + _P_NEXT),
     (lambda c: c["args"][0] + (c["args"][1] + c["args"][2]) * c["args"][3],
-     "the ½ is missing: the mean velocity is ½(v₀ + v₁), p_next = p + ½(v₀ + v₁) T"),
+     "the ½ is missing: the mean velocity is half the sum (lecture 07 §4)" + _P_NEXT),
     (lambda c: c["args"][0] + 0.5 * (c["args"][1] + c["args"][2]) * c["args"][3] ** 2,
-     "the position changes by v T, with T, not T²: p_next = p + ½(v₀ + v₁) T"),
+     "the position changes by the velocity times T, not T² (lecture 07 §4)" + _P_NEXT),
     (lambda c: c["args"][0] + 0.5 * (c["args"][1] + c["args"][2]),
-     "multiply the mean velocity by the step: p_next = p + ½(v₀ + v₁) T (m/s × s)"),
+     "multiply the mean velocity by the step (m/s × s; lecture 07 §4)" + _P_NEXT),
     (lambda c: c["args"][0] + 0.25 * (c["args"][1] + c["args"][2]) * c["args"][3],
-     "the ½ of the mean velocity is applied once: p_next = p + ½(v₀ + v₁) T"),
+     "the ½ of the mean velocity is applied once (lecture 07 §4)" + _P_NEXT),
     (lambda c: c["args"][0] + c["args"][1] * c["args"][3] + 0.5 * (c["args"][2] - c["args"][1]) * c["args"][3] ** 2,
      "units: ½(v₁ − v₀) T² is in m·s, not m. p + v₀T + ½aT² needs the acceleration a = (v₁ − v₀)/T, "
-     "not the velocity change v₁ − v₀: this gives p + v₀T + ½(v₁ − v₀)T = p + ½(v₀ + v₁) T"),
+     "not the velocity change v₁ − v₀ (lecture 07 §4)"
+     + _F(": this gives p + v₀T + ½(v₁ − v₀)T = p + ½(v₀ + v₁) T")),
     (lambda c: c["args"][0] + 0.5 * (c["args"][2] - c["args"][1]) * c["args"][3],
-     "sign: the mean velocity is ½(v₀ + v₁), a sum, not a difference"),
+     "sign: the mean velocity is a sum, not a difference (lecture 07 §4)" + _F(": ½(v₀ + v₁)")),
     (lambda c: c["args"][0] + 0.5 * (c["args"][1] - c["args"][2]) * c["args"][3],
-     "sign: the mean velocity is ½(v₀ + v₁), a sum, not a difference"),
+     "sign: the mean velocity is a sum, not a difference (lecture 07 §4)" + _F(": ½(v₀ + v₁)")),
     (lambda c: c["args"][0] - 0.5 * (c["args"][1] + c["args"][2]) * c["args"][3],
-     "sign: the position moves along the velocity, p_next = p + ½(v₀ + v₁) T"),
+     "sign: the position moves along the velocity (lecture 07 §4)" + _P_NEXT),
     (lambda c: 0.5 * (c["args"][1] + c["args"][2]) * c["args"][3],
-     "p_next is the previous position plus the displacement: p + ½(v₀ + v₁) T"),
+     "p_next is the previous position plus the displacement (lecture 07 §4)" + _P_NEXT),
     (lambda c: c["args"][0] + np.mean([c["args"][1], c["args"][2]]) * c["args"][3],
      "the mean is over the two velocities (axis 0 of [v₀, v₁]), not over all six numbers: "
      "np.mean([v0, v1], axis=0)"),
@@ -563,7 +715,8 @@ def check_position_step(position_step):
     for c in cases:
         values.append(_result(_call_step(position_step, *c["args"]), (3,), f"p_next on the case '{c['name']}'"))
     _grade(values, cases, "p_next", POSITION_ATOL, _POSITION_MISTAKES,
-           hint="p_next = p + ½(v₀ + v₁) T (exact for a constant acceleration)")
+           hint="the position step moves by the step's mean velocity times its length, exact for a constant "
+                "acceleration (lecture 07 §4)" + _P_NEXT)
 
 
 # ----------------------------------------------------------------------------------------
@@ -620,13 +773,14 @@ def _variant_run(imu, state, g, start, stop, *, dt="own", w_at=(-1, 0), f_at=(-1
     return p, v, R
 
 
-_OFF_BY_ONE = ("off by one: the step from sample k−1 to sample k uses the readings at k−1 and k and "
-               "dt = imu.t[k] − imu.t[k−1]")
+_OFF_BY_ONE = ("off by one: the step from sample k−1 to sample k uses the readings at both of its ends and its "
+               "own length (lecture 07 §4)" + _F(": the readings at k−1 and k, dt = imu.t[k] − imu.t[k−1]"))
+_OWN_DT = _F(": dt = imu.t[k] − imu.t[k−1]")
 _RUN_MISTAKES = [
     (dict(dt="first"), "KITTI's IMU timestamps are irregular (dt from {dt_range} here): give every step its "
-                       "own dt = imu.t[k] − imu.t[k−1], not the first interval"),
+                       "own length, not the first interval (lecture 07 §4)" + _OWN_DT),
     (dict(dt="slice"), "KITTI's IMU timestamps are irregular (dt from {dt_range} here): give every step its "
-                       "own dt = imu.t[k] − imu.t[k−1], not one interval for all"),
+                       "own length, not one interval for all (lecture 07 §4)" + _OWN_DT),
     (dict(dt="next"), _OFF_BY_ONE + " (your dt is the next interval, imu.t[k+1] − imu.t[k])"),
 ] + [
     (dict(w_at=(0, 1), f_at=(0, 1)), _OFF_BY_ONE + " (your readings are those at k and k+1)"),
@@ -637,30 +791,31 @@ _RUN_MISTAKES = [
     (dict(f_at=(-2, -1)), _OFF_BY_ONE + " (your specific forces are those at k−2 and k−1)"),
 ] + [
     (dict(w_at=at, f_at=at2), "midpoint rule: the step from k−1 to k uses the readings at both ends, k−1 and k "
-                              f"(you passed one reading twice{note})")
+                              f"(you passed one reading twice{note}; lecture 07 §4)")
     for at, at2, note in (((-1, -1), (-1, -1), ": Euler's rule"), ((0, 0), (0, 0), ""),
                           ((-1, -1), (-1, 0), ", the rate"), ((0, 0), (-1, 0), ", the rate"),
                           ((-1, 0), (-1, -1), ", the specific force"), ((-1, 0), (0, 0), ", the specific force"))
 ] + [
-    (dict(offset=False), "the run starts at sample `start`: the step to row i uses sample k = start + i, "
-                         "not k = i"),
+    (dict(offset=False), "the run starts at sample `start`, not at sample 0: the step to row i uses sample "
+                         "k = start + i, not k = i (exercise §4)"),
     (dict(pair="old"), "hand the velocity step the attitudes at both ends of the step, R[i−1] and the new "
-                       "R[i] (you passed the old attitude twice)"),
+                       "R[i] (you passed the old attitude twice; lecture 07 §4)"),
     (dict(pair="new"), "hand the velocity step the attitudes at both ends of the step, R[i−1] and the new "
-                       "R[i] (you passed the new attitude twice)"),
+                       "R[i] (you passed the new attitude twice; lecture 07 §4)"),
     (dict(pair="swapped"), "hand the velocity step the attitudes in the order of the readings: R[i−1] (with "
-                           "the reading at k−1), then R[i] (they are swapped)"),
-    (dict(dt="since"), "dt is the length of this step, imu.t[k] − imu.t[k−1], not the time since the start"),
+                           "the reading at k−1), then R[i] (they are swapped; lecture 07 §4)"),
+    (dict(dt="since"), "dt is the length of this step, not the time since the start (lecture 07 §4)" + _OWN_DT),
     (dict(from_start=True), "each attitude step starts from the previous row's attitude R[i−1], not from "
-                            "the initial one"),
-    (dict(turn=False), "the attitude is never updated: R[i] = attitude_step(R[i−1], ...)"),
-    (dict(gravity=False), "gravity is missing from the run: hand g to the velocity step"),
+                            "the initial one (lecture 07 §4)"),
+    (dict(turn=False), "the attitude is never updated: each row's attitude comes from attitude_step applied to "
+                       "the row before (lecture 07 §4)" + _F(": R[i] = attitude_step(R[i−1], ...)")),
+    (dict(gravity=False), "gravity is missing from the run: hand g to the velocity step (lecture 07 §4)"),
     (dict(gravity=False, bias="g"), "gravity and the accelerometer bias are swapped in the call of "
                                     "velocity_step(v, R0, R1, f0, f1, b_a, g, dt)"),
     (dict(vpair="old"), "hand the position step the velocities at both ends of the step, v[i−1] and the new "
-                        "v[i] (you passed the old velocity twice)"),
+                        "v[i] (you passed the old velocity twice; lecture 07 §4)"),
     (dict(vpair="new"), "hand the position step the velocities at both ends of the step, v[i−1] and the new "
-                        "v[i] (you passed the new velocity twice)"),
+                        "v[i] (you passed the new velocity twice; lecture 07 §4)"),
 ]
 
 
@@ -751,32 +906,33 @@ def _diagnose_run(result, scenario):
     if not (np.allclose(p[0], state.position) and np.allclose(v[0], state.velocity)
             and np.allclose(R[0], state.rotation)):
         raise CheckFailed(f"the first row on {name} is not the initial state. Hint: row 0 of positions, "
-                          "velocities and rotations is the state handed in (at imu.t[start])")
+                          "velocities and rotations is the state handed in (at imu.t[start]; exercise §4)")
     frozen = [bool(np.allclose(x, x[0], rtol=0.0, atol=tol)) for x, tol in zip(result, RUN_ATOL)]
     if all(frozen):
         raise CheckFailed(f"on {name} every row equals the initial state: the loop makes no step (is the "
                           "placeholder still there?). Hint: each row i is one mechanisation step from row i − 1 "
                           "with the readings at k − 1 and k, made by your attitude_step, velocity_step and "
-                          "position_step")
-    for flags, why in _RUN_MISTAKES:
-        flags = dict(flags, bias=g) if flags.get("bias") == "g" else flags
-        try:
-            wrong = _variant_run(imu, state, g, start, stop, **flags)
-        except IndexError:
-            continue
-        if all(np.allclose(x, y, rtol=0.0, atol=tol) for x, y, tol in zip(result, wrong, RUN_ATOL)):
-            why = why.format(dt_range=_dt_range(imu, start, stop)) if "{dt_range}" in why else why
-            raise CheckFailed(f"the run on {name} is wrong. Hint: {why}")
+                          "position_step (lecture 07 §4)")
+    def run_with(flags, _):
+        # a swapped bias and gravity is the only mistake that needs this scenario's g
+        return _variant_run(imu, state, g, start, stop, **(dict(flags, bias=g) if flags.get("bias") == "g" else flags))
+
+    # a mistake that indexes past the data (IndexError) cannot be the learner's: known_mistake skips it
+    why = known_mistake([result], [scenario], _RUN_MISTAKES, evaluate=run_with,
+                        close=lambda mine, wrong, _: wrong is not None and _same_runs(mine, wrong))
+    if why:
+        why = why.format(dt_range=_dt_range(imu, start, stop)) if "{dt_range}" in why else why
+        raise CheckFailed(f"the run on {name} is wrong. Hint: {why}")
     if np.allclose(R, np.swapaxes(ref[2], 1, 2), rtol=0.0, atol=RUN_ATOL[2]):
         raise CheckFailed(f"rotations on {name} are transposed. Hint: return R_nb (body → navigation), "
-                          "as attitude_step computes it")
+                          "as attitude_step computes it (lecture 07 §3)")
     if all(np.allclose(x[:-1], y[:-1], rtol=0.0, atol=tol) for x, y, tol in zip(result, ref, RUN_ATOL)):
-        raise CheckFailed(f"the last state on {name} is wrong. Hint: the loop fills rows 1 .. n−1: "
-                          "for i in range(1, n) (did it stop one step early?)")
+        raise CheckFailed(f"the last state on {name} is wrong. Hint: the loop fills rows 1 .. n−1 (did it stop "
+                          "one step early?)" + _F(": for i in range(1, n)"))
     for still, what, step in zip(frozen, ("positions", "velocities"), ("position_step", "velocity_step")):
         if still:
             raise CheckFailed(f"the {what} on {name} never change from the initial state. Hint: every step "
-                              f"must fill row i with {step}, from row i − 1")
+                              f"must fill row i with {step}, from row i − 1 (lecture 07 §4)")
 
 
 @check(uses=("attitude_step", "velocity_step", "position_step"))
@@ -801,14 +957,16 @@ def check_mechanisation_run(mechanise):
                 raise CheckFailed(f"{what} on {name} contain NaN or inf. Hint: the arrays start as NaN, so a "
                                   "row used before it is filled turns into NaN: within a step, a function that "
                                   "needs the new attitude or velocity must come after the step that computes "
-                                  "it; every row 1 .. n−1 is filled by one step from the row before it")
+                                  "it; every row 1 .. n−1 is filled by one step from the row before it "
+                                  "(lecture 07 §4: attitude, then velocity, then position)")
         for x, y, what, tol in zip(result, ref, ("positions", "velocities", "rotations"), RUN_ATOL):
             if not np.allclose(x, y, rtol=0.0, atol=tol):
                 k = int(np.argmax(np.abs(x - y).reshape(n, -1).max(axis=1) > tol))
                 raise CheckFailed(
                     f"{what} on {name} differ from the reference from row {k} on (max abs error "
-                    f"{np.max(np.abs(x - y)):.3g}). Hint: each row i ≥ 1 is one midpoint step from row i − 1 "
-                    "with the readings at k − 1 and k = start + i and dt = imu.t[k] − imu.t[k−1]")
+                    f"{np.max(np.abs(x - y)):.3g}). Hint: each row i ≥ 1 is one midpoint step from row i − 1, "
+                    "with the readings at both ends of the step and its own length (lecture 07 §4)"
+                    + _F(": the readings at k − 1 and k = start + i, and dt = imu.t[k] − imu.t[k−1]"))
 
 
 def _run_arrays(result, n, name):
@@ -819,6 +977,7 @@ def _run_arrays(result, n, name):
     arrays = []
     for value, what, shape in zip(result, ("positions", "velocities", "rotations"),
                                   ((n, 3), (n, 3), (n, 3, 3))):
+        _expect_double(value, f"{what} on {name}")
         arr = as_array(value, f"{what} on {name}")
         if arr.shape != shape:
             raise CheckFailed(f"{what} on {name} have shape {arr.shape}, expected {shape}. Hint: return "
@@ -841,9 +1000,9 @@ UP = np.array([0.0, 0.0, 1.0])
 LEVEL_ATOL = 1e-9
 
 _LEVEL_NAN = ("when the IMU is level, f is parallel to up and the axis f × up is zero: normalising it "
-              "divides 0 by 0. A level IMU needs no rotation: return the identity there")
+              "divides 0 by 0. A level IMU needs no rotation: return the identity there (lecture 07 §1)")
 _LEVEL_NORMALISE = ("arccos of a number outside [−1, 1] is NaN: the cosine of the tilt is the dot product "
-                    "of UNIT vectors, f/|f| · up (|f| ≈ 9.81 m/s²)")
+                    "of UNIT vectors (|f| ≈ 9.81 m/s²; lecture 07 §1)" + _F(": f/|f| · up"))
 
 
 def _tilt(u, target=UP):
@@ -919,23 +1078,24 @@ def _turned(R, c):
 _LEVEL_MISTAKES = [
     (lambda R, c: np.allclose(R, np.eye(3), atol=LEVEL_ATOL),
      "R is the identity: that assumes the IMU is level. The accelerometer tells the tilt: find the "
-     "rotation R_nb that turns the measured direction f/|f| onto the navigation frame's up"),
+     "rotation R_nb that turns the measured direction onto the navigation frame's up (lecture 07 §4: what "
+     "a resting accelerometer reads)" + _F(": R f/|f| = (0, 0, 1)")),
     (lambda R, c: np.allclose(_turned(R, c), -UP, atol=LEVEL_ATOL),
      "your R turns f onto DOWN. At rest the accelerometer reads the specific force, the push that holds "
-     "the IMU against gravity: it points up (f = −Rᵀg), so R f/|f| = (0, 0, 1)"),
+     "the IMU against gravity: it points up (lecture 07 §4)" + _F(": f = −Rᵀg, so R f/|f| = (0, 0, 1)")),
     (lambda R, c: np.allclose(R.T @ c["u"], UP, atol=LEVEL_ATOL),
-     "your R is transposed: R = R_nb maps body coordinates to navigation ones, so R applied to the "
-     "body-frame f/|f| gives up, R f/|f| = (0, 0, 1); yours maps up back onto f (R_bn)"),
+     "your R is transposed: R = R_nb maps body coordinates to navigation ones; yours maps up back onto f "
+     "(R_bn; lecture 07 §1)" + _F(": R applied to the body-frame f/|f| gives up, R f/|f| = (0, 0, 1)")),
     (lambda R, c: np.isclose(_tilt(_turned(R, c)), abs(c["tilt"] - np.arcsin(np.sin(c["tilt"]))), atol=1e-7),
-     "quadrant: arcsin(|f × up| / |f|) cannot tell a tilt θ from 180° − θ (an IMU upside down); take the "
-     "angle with atan2(|u × up|, u · up) or arccos(u · up)"),
+     "quadrant: arcsin(|f × up| / |f|) cannot tell a tilt θ from 180° − θ (an IMU upside down; lecture 07 "
+     "§1)" + _F(": take the angle with atan2(|u × up|, u · up) or arccos(u · up)")),
     (lambda R, c: np.isclose(_tilt(_turned(R, c)), abs(c["tilt"] - np.sin(c["tilt"])), atol=1e-7),
-     "the cross product u × up has length sin θ, not θ: the rotation vector is the tilt θ times the UNIT "
-     "axis (u × up)/|u × up|"),
+     "the cross product u × up has length sin θ, not θ: the rotation vector is the tilt θ times a UNIT "
+     "axis (lecture 07 §1)" + _F(": θ (u × up)/|u × up|")),
     (lambda R, c: np.isclose(_tilt(_turned(R, c)), abs(c["tilt"] - c["tilt"] * np.sin(c["tilt"])), atol=1e-7),
-     "the axis u × up has length sin θ: normalise it before multiplying by the tilt θ"),
+     "the axis u × up has length sin θ: normalise it before multiplying by the tilt θ (lecture 07 §1)"),
     (lambda R, c: np.isclose(_tilt(_turned(R, c)), _fold(np.degrees(c["tilt"]) - c["tilt"]), atol=1e-7),
-     "so3.Exp takes radians: do not convert the tilt to degrees"),
+     "so3.Exp takes radians: do not convert the tilt to degrees (lecture 07 §1)"),
 ]
 
 
@@ -955,6 +1115,7 @@ def check_level_attitude(level_attitude):
             if not level and "nan" in str(exc).lower():
                 raise CheckFailed(f"{exc} (on the case '{c['name']}'). Hint: {_LEVEL_NORMALISE}") from None
             raise
+        _expect_double(got, what)
         try:
             R = expect_shape(got, (3, 3), what)
         except CheckFailed as exc:
@@ -964,23 +1125,27 @@ def check_level_attitude(level_attitude):
         if not so3.is_rotation(R, tol=1e-9):
             err = np.max(np.abs(R.T @ R - np.eye(3)))
             raise CheckFailed(f"{what} is not a rotation matrix (|RᵀR − I| = {err:.2g}). Hint: build it as "
-                              "so3.Exp of a rotation vector: the tilt angle (rad) times a UNIT axis")
+                              "so3.Exp of a rotation vector (lecture 07 §1)"
+                              + _F(": the tilt angle (rad) times a UNIT axis"))
         rotations.append(R)
         turned.append(_turned(R, c))
     failing = [k for k, v in enumerate(turned) if not np.allclose(v, UP, rtol=0.0, atol=LEVEL_ATOL)]
     if not failing:
         return
-    for fits, why in _LEVEL_MISTAKES:
-        if all(bool(fits(R, c)) for R, c in zip(rotations, cases)):
-            raise CheckFailed(f"R does not level the IMU. Hint: {why}")
+    # a predicate is "evaluated" on a case into the test of the learner's R there
+    why = known_mistake(rotations, cases, _LEVEL_MISTAKES, evaluate=lambda fits, c: lambda R: fits(R, c),
+                        close=_holds)
+    if why:
+        raise CheckFailed(f"R does not level the IMU. Hint: {why}")
     beyond_90 = [k for k, c in enumerate(cases) if c["tilt"] > 0.5 * np.pi]
     if failing == beyond_90:
         raise CheckFailed("R levels the IMU up to 90° of tilt but not beyond (case "
                           f"'{cases[failing[0]]['name']}'). Hint: quadrant: arcsin or arctan(y/x) cannot tell a "
-                          "tilt θ from 180° − θ; use np.arctan2 with both arguments, or arccos of the cosine")
+                          "tilt θ from 180° − θ (lecture 07 §1)"
+                          + _F("; use np.arctan2 with both arguments, or arccos of the cosine"))
     k = failing[0]
     off = np.degrees(_tilt(turned[k]))
     raise CheckFailed(f"on the case '{cases[k]['name']}' R f/|f| is {off:.3g}° away from up (0, 0, 1). Hint: "
                       "R = R_nb must turn the direction the accelerometer measures (body frame) onto the "
-                      "navigation frame's up; one such R turns about the axis u × up by the angle between "
-                      "u = f/|f| and up")
+                      "navigation frame's up (lecture 07 §1, §4)"
+                      + _F("; one such R turns about the axis u × up by the angle between u = f/|f| and up"))

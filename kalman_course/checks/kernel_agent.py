@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import functools
+import inspect
 import io
 import types
 import warnings
@@ -89,11 +91,211 @@ def call_quietly(fn, args: tuple):
     """``fn(*args)`` as the checks call learner code: on fresh copies of the arguments, its
     prints and warnings silenced, floating-point warnings off (a grader cell and this agent
     both call learner functions this way)."""
+    return _quietly(fn, _copies(args))
+
+
+def call_watched(fn, args: tuple):
+    """:func:`call_quietly`, and how the call behaved besides its result.
+
+    Returns
+    -------
+    result
+        What ``fn`` returned.
+    behaviour : list of [str, str] or [str, str, str]
+        ``[kind, detail]`` for each property of well-behaved code the call broke (``[kind,
+        detail, name]`` when a notebook function that ``fn`` drove broke it), in the
+        order of :data:`BEHAVIOUR`: ``changed`` (an argument modified in place; detail: its
+        name), ``aliased`` (a returned array shares memory with an argument: its name),
+        ``precision`` (a floating result narrower than float64: where and which type),
+        ``unrepeatable`` (a second call on the same inputs returned something else; tried
+        for functions of the notebook only, whose calls are cheap).
+    """
+    with _quiet():
+        return _watched_call(fn, args)
+
+
+def _watched_call(fn, args: tuple):
+    given = _copies(args)  # the learner's code never sees ``args`` themselves: they stay as they were
+    inner: list = []  # what the notebook's functions that a package function drives did
+    result = fn(*(given if _of_the_notebook(fn) else _watching(given, inner)))
+    names = _parameter_names(fn, len(args))
+    behaviour = [["changed", names[i]] for i, (old, new) in enumerate(zip(args, given))
+                 if not _same(old, new)]
+    behaviour += inner
+    given_arrays = [(names[i], a) for i, arg in enumerate(given) for a in _arrays(arg)]
+    behaviour += [["aliased", name] for name in dict.fromkeys(
+        name for r in _arrays(result) for name, a in given_arrays if np.shares_memory(r, a))]
+    behaviour += [["precision", what] for what in _narrow_floats(result)]
+    if not behaviour and _of_the_notebook(fn):
+        try:
+            again = fn(*_copies(args))
+        except (Exception, SystemExit):
+            again = _RAISED
+        if not _same(result, again):
+            behaviour.append(["unrepeatable", ""])
+    return result, behaviour
+
+
+class _Watched:
+    """A notebook function handed to a package function (a whole filter run from the learner's
+    steps): its first calls run on copies and are watched like a direct call, so that a step
+    that changes its arguments in place is named, not the run it spoils."""
+
+    WATCHED_CALLS = 2
+
+    def __init__(self, fn, found: list):
+        self.fn, self.found, self.calls = fn, found, 0
+        functools.update_wrapper(self, fn)
+
+    def __call__(self, *args, **kwargs):
+        if kwargs or self.calls >= self.WATCHED_CALLS:
+            return self.fn(*args, **kwargs)
+        self.calls += 1
+        given = copy.deepcopy(args)  # the package's own arrays are not handed over while watched
+        result = self.fn(*given)
+        names = _parameter_names(self.fn, len(args))
+        who = getattr(self.fn, "__name__", "a function of yours")
+        changed = [["changed", names[i], who] for i, (old, new) in enumerate(zip(args, given)) if not _same(old, new)]
+        narrow = [["precision", what, who] for what in _narrow_floats(result)]
+        for item in changed + narrow:
+            if item not in self.found:
+                self.found.append(item)
+        return result
+
+
+def _watching(args: tuple, found: list) -> tuple:
+    """``args`` with each notebook function among them (or in a list, tuple or dict among
+    them) watched by a :class:`_Watched`."""
+    def watched(value):
+        return _Watched(value, found) if _of_the_notebook(value) else value
+
+    out = []
+    for arg in args:
+        if isinstance(arg, dict):
+            arg = type(arg)({k: watched(v) for k, v in arg.items()}) if type(arg) is dict else arg
+        elif type(arg) in (list, tuple):
+            arg = type(arg)(watched(v) for v in arg)
+        out.append(watched(arg))
+    return tuple(out)
+
+
+#: The properties :func:`call_watched` reports, in the order it reports them.
+BEHAVIOUR = ("changed", "aliased", "precision", "unrepeatable")
+
+_RAISED = object()  # what a second call that raised is compared as
+
+
+def _copies(args: tuple) -> tuple:
+    """A fresh copy of each argument, each on its own: two arguments that were one array become
+    two, as they do when they cross from the grading process as plain data."""
+    return tuple(copy.deepcopy(arg) for arg in args)
+
+
+@contextlib.contextmanager
+def _quiet():
+    """Prints and warnings silenced, floating-point warnings off."""
     sink = io.StringIO()
     with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink), \
             warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore")
-        return fn(*copy.deepcopy(args))
+        yield
+
+
+def _quietly(fn, args: tuple):
+    with _quiet():
+        return fn(*args)
+
+
+def _parameter_names(fn, count: int) -> list[str]:
+    """The names of ``fn``'s first ``count`` positional parameters ("argument 3" where unknown)."""
+    code = getattr(fn, "__code__", None)
+    if isinstance(fn, types.FunctionType) and isinstance(code, types.CodeType):
+        # a plain function's names are in its code (inspect.signature costs ~50x more)
+        params = list(code.co_varnames[:code.co_argcount])
+    else:
+        try:
+            params = [p.name for p in inspect.signature(fn).parameters.values()
+                      if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+        except (TypeError, ValueError):
+            params = []
+    return [params[i] if i < len(params) else f"argument {i + 1}" for i in range(count)]
+
+
+def _of_the_notebook(fn) -> bool:
+    """Whether ``fn`` is a plain function defined in the notebook (not one of this package)."""
+    return isinstance(fn, types.FunctionType) and not str(getattr(fn, "__module__", "")).startswith("kalman_course")
+
+
+def _same(a, b, depth: int = 0) -> bool:
+    """Whether two values are equal as data (arrays element by element, NaN equal to NaN)."""
+    if depth > 20 or a is b:
+        return True
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        if not (isinstance(a, np.ndarray) and isinstance(b, np.ndarray)) or a.shape != b.shape \
+                or a.dtype != b.dtype:
+            return False
+        if a.dtype.kind in "biufc":  # bit for bit: NaN equals NaN, and it is fast
+            return np.ascontiguousarray(a).tobytes() == np.ascontiguousarray(b).tobytes()
+        return all(_same(x, y, depth + 1) for x, y in zip(a.flat, b.flat))
+    if type(a) is not type(b):
+        return False
+    if isinstance(a, (list, tuple)):
+        return len(a) == len(b) and all(_same(x, y, depth + 1) for x, y in zip(a, b))
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k], depth + 1) for k in a)
+    if isinstance(a, (float, np.floating)) and a != a and b != b:  # NaN
+        return True
+    if callable(a):  # a function handed in: not data
+        return True
+    if hasattr(a, "__dict__") and not isinstance(a, type):
+        return _same(vars(a), vars(b), depth + 1)
+    try:
+        return bool(a == b)
+    except Exception:  # a value that cannot be compared is taken as unchanged
+        return True
+
+
+def _arrays(value, depth: int = 0):
+    """The NumPy arrays inside ``value`` (through tuples, lists, dict values, object fields)."""
+    if depth > 5:
+        return
+    if isinstance(value, np.ndarray):
+        if value.dtype != object:
+            yield value
+    elif isinstance(value, (list, tuple)):
+        for item in value:
+            yield from _arrays(item, depth + 1)
+    elif isinstance(value, dict):
+        for item in value.values():
+            yield from _arrays(item, depth + 1)
+    elif hasattr(value, "__dict__") and not isinstance(value, type) and not callable(value):
+        for item in vars(value).values():
+            yield from _arrays(item, depth + 1)
+
+
+def _narrow_floats(result) -> list[str]:
+    """Where a result holds floating values narrower than float64 (float32, float16, complex64)."""
+    found = []
+
+    def visit(value, where: str, depth: int) -> None:
+        if depth > 5:
+            return
+        dtype = getattr(value, "dtype", None)
+        if isinstance(value, (np.ndarray, np.generic)) and dtype.kind in "fc" and \
+                dtype.itemsize < (8 if dtype.kind == "f" else 16):
+            found.append(f"{where} is {dtype.name}")
+        elif isinstance(value, (list, tuple)):
+            for i, item in enumerate(value):
+                visit(item, f"item {i} of {where}" if where != "the result" else f"item {i}", depth + 1)
+        elif isinstance(value, dict):
+            for key, item in value.items():
+                visit(item, f"{key!r} of {where}", depth + 1)
+        elif hasattr(value, "__dict__") and not isinstance(value, type) and not callable(value):
+            for key, item in vars(value).items():
+                visit(item, f".{key} of {where}", depth + 1)
+
+    visit(result, "the result", 0)
+    return found
 
 
 def _call(namespace: dict, request: dict):
@@ -101,10 +303,10 @@ def _call(namespace: dict, request: dict):
     if not callable(fn):
         return {"not_callable": type(fn).__name__}
     try:
-        result = call_quietly(fn, request["args"])
+        result, behaviour = call_watched(fn, request["args"])
     except (Exception, SystemExit) as exc:  # the learner's code may raise anything
         return {"raised": plain_data.Raised(type(exc).__name__, str(exc))}
-    return {"result": result}
+    return {"result": result, "behaviour": behaviour} if behaviour else {"result": result}
 
 
 def answer(namespace: dict, request: str, handles: dict | None = None) -> str:

@@ -13,6 +13,15 @@ a position selector G and symmetric inputs, several transposes change nothing). 
 check's known mistakes are listed as wrong values with the hint that names them; the
 list is walked only when the learner's value is wrong, so it costs nothing on a pass.
 
+The CV model's check then sweeps the time step from 1 µs to 1000 s (:data:`CV_SWEEP`), σ_a
+on both sides of 1, comparing each entry of Q relative to its block's size (the blocks differ
+by T² in size), so that a cut-off or special case for very short or very long steps shows.
+
+Hints come in tiers (:mod:`kalman_course.checks.hints`): the first names the concept, the
+mistake where one is known and the lecture section; the formula is marked and shown at tier 2.
+Which listed mistake explains a learner's whole run is asked of :func:`harness.known_mistake`
+over every case of the run checks.
+
 Tolerances: the checks compare with ``expect_close``'s default rtol 1e-7 / atol 1e-9
 unless a comment says otherwise. Every correct way to write the step functions (inverse
 or solve, Joseph or short form, with or without a final symmetrisation) agrees with the
@@ -41,8 +50,9 @@ import numpy as np
 from kalman_course.filters import kf
 from kalman_course import symbolic
 from kalman_course.checks import cases as inputs  # `cases` names the lists of cases below
-from kalman_course.checks.harness import (CheckFailed, as_array, call, check, expect_close,
-                                          expect_shape, expect_symmetric, type_name)
+from kalman_course.checks import hints
+from kalman_course.checks.harness import (CheckFailed, as_array, call, check, expect_close, expect_shape,
+                                          expect_symmetric, known_mistake, type_name, with_symmetrised)
 from kalman_course.core import linalg
 from kalman_course.chapters.gnss import truth_at
 from kalman_course.data import load_kitti
@@ -72,9 +82,25 @@ CV_DRAWN = (((0.05, 0.3), (1.5, 3.0)), ((0.3, 0.8), (0.2, 0.5)), ((1.5, 3.0), (0
 GNSS_SIGMAS = np.array([0.5, 1.5, 3.0])
 
 SHAPES_UPDATE = ("the shapes are x̌ (n,), P̌ (n, n), y (m,), G (m, n), R (m, m); then "
-                 "S = G P̌ Gᵀ + R is (m, m), K = P̌ Gᵀ S⁻¹ is (n, m) and I − K G is (n, n). Multiply matrices "
+                 "S is (m, m), K is (n, m) and I − K G is (n, n). Multiply matrices "
                  "with @ (not *); S⁻¹ is a matrix inverse (np.linalg.solve or inv), not a "
-                 "division; and check the order and the transposes")
+                 "division; and check the order and the transposes (lecture 03 §3): "
+                 + hints.formula("S = G P̌ Gᵀ + R, K = P̌ Gᵀ S⁻¹"))
+
+#: The formulas the hints point to, shown at hint tier 2 (:mod:`kalman_course.checks.hints`).
+Q_FORMULA = hints.formula("Q = B (σ_a² I) Bᵀ with B = [T²/2 I; T I]")
+F_FORMULA = hints.formula("F = [[I, T I], [0, I]]")
+PRIOR_FORMULA = hints.formula("P̌ = F P̂ Fᵀ + Q")
+S_FORMULA = hints.formula("S = G P̌ Gᵀ + R")
+GAIN_FORMULA = hints.formula("K = P̌ Gᵀ S⁻¹")
+MEAN_FORMULA = hints.formula("x̂ = x̌ + K (y − G x̌)")
+JOSEPH_FORMULA = hints.formula("Joseph form: P̂ = (I − K G) P̌ (I − K G)ᵀ + K R Kᵀ")
+
+
+def _about(why: str, section: str, formula: str) -> str:
+    """A hint at its two tiers: ``why`` (the concept or the mistake) and where the lecture
+    derives it, then the marked ``formula`` (shown at tier 2)."""
+    return f"{why} (lecture 03 §{section}): {formula}"
 
 
 def _drawn(rng: np.random.Generator, low: float, high: float) -> float:
@@ -100,6 +126,39 @@ def _cv_cases():
     return inputs.fixed_or_drawn(
         CV_CASES, lambda rng: tuple((_drawn(rng, *T), _drawn(rng, *sigma)) for T, sigma in CV_DRAWN),
         "kf.cv")
+
+
+#: The sweep of the CV model's time step beyond the three cases' 0.1–2 s: from a step far shorter
+#: than any sensor's (1 µs, where T⁴/4 is 2.5e-25) to one far longer than the exercise's 1 s
+#: fixes (1000 s), three decades apart or more, with σ_a alternating below and above 1, so that
+#: a cut-off or a special case a learner writes for very short or very long steps shows. Four
+#: steps: each costs a learner call, and the check's run time stays within 1.5× of the three
+#: cases' alone.
+CV_SWEEP = ((1e-6, 0.05), (1e-3, 3.0), (30.0, 0.4), (1000.0, 12.0))
+
+
+@functools.lru_cache(maxsize=None)
+def _cv_sweep():
+    """The (T, σ_a) of the sweep: :data:`CV_SWEEP`, or under a run seed each step drawn
+    log-uniform within a factor 3 of the fixed one (three significant digits) with σ_a drawn on
+    the same side of 1 as the fixed sweep's, again alternating."""
+    def draw(rng):
+        out = []
+        for T, sigma in CV_SWEEP:
+            step = float(f"{float(inputs.log_uniform(rng, T / 3.0, T * 3.0)):.3g}")
+            level = _drawn(rng, 0.05, 0.9) if sigma < 1.0 else _drawn(rng, 1.2, 20.0)
+            out.append((step, level))
+        return tuple(out)
+    return inputs.fixed_or_drawn(CV_SWEEP, draw, "kf.cv.sweep")
+
+
+def _scaled_q(Q, T: float, sigma_a: float, dim: int = 3) -> np.ndarray:
+    """Q divided entry by entry by the size of its block, σ_a² (T²/2 or T)(T²/2 or T): the
+    blocks of Q differ by T² in size (10⁻¹² at T = 1 µs), so an absolute tolerance would hide
+    every short step's position block; scaled, a correct Q is [[I, I], [I, I]] to round-off at
+    every T."""
+    scale = sigma_a * np.r_[np.full(dim, 0.5 * T**2), np.full(dim, T)]
+    return np.asarray(Q, dtype=float) / np.outer(scale, scale)
 
 
 def cv_matrices_reference(T, sigma_a, dim=3):
@@ -258,16 +317,6 @@ def _expect(value, expected, what: str, *, formula: str, mistakes=(), **toleranc
     return expect_close(value, expected, what, mistakes=mistakes, hint=formula, **tolerances)
 
 
-def _with_symmetrised(mistakes):
-    """Each wrong value, then its symmetrised form with the same hint (a learner's last
-    line often symmetrises whatever the formula gave)."""
-    for wrong, why in mistakes:
-        wrong = np.asarray(wrong, dtype=float)
-        yield wrong, why
-        if wrong.ndim == 2 and wrong.shape[0] == wrong.shape[1]:
-            yield linalg.symmetrise(wrong), why
-
-
 def _blocks_that_differ(value: np.ndarray, expected: np.ndarray, dim: int = 3) -> str:
     """Which (position/velocity) blocks of a blocked 2·dim matrix differ, in words."""
     names = ("position", "velocity")
@@ -296,35 +345,42 @@ def _q_mistakes(T, sigma_a, F, Q):
     yield q * np.eye(6), ("σ_a is the standard deviation of an acceleration, not of the state: "
                           "Q = σ_a² I puts the noise straight on every position and velocity. The "
                           "acceleration enters the state through the process-noise Jacobian B (how "
-                          "a held acceleration moves p and v over the step), Q = B (σ_a² I) Bᵀ "
-                          "(lecture 03 §5)")
-    yield sigma_a * B @ B.T, ("σ_a is a standard deviation: square it, Q = B (σ_a² I) Bᵀ "
-                              "(the acceleration's variance is σ_a²)")
-    yield sigma_a**4 * B @ B.T, "σ_a is squared twice: Q = B (σ_a² I) Bᵀ, not B (σ_a⁴ I) Bᵀ"
-    yield symbolic.cv_process_noise_continuous(T, q, 3), (
+                          "a held acceleration moves p and v over the step; lecture 03 §5): "
+                          + Q_FORMULA)
+    yield sigma_a * B @ B.T, _about("σ_a is a standard deviation: square it (the acceleration's "
+                                    "variance is σ_a²)", "5", Q_FORMULA)
+    yield sigma_a**4 * B @ B.T, _about("σ_a is squared twice: the acceleration's variance is σ_a², "
+                                       "not σ_a⁴", "5", Q_FORMULA)
+    yield symbolic.cv_process_noise_continuous(T, q, 3), _about(
         "that is the continuous-white-noise Q; this exercise uses piecewise-constant "
-        "acceleration (held over the step), Q = B (σ_a² I) Bᵀ with B = [T²/2 I; T I]")
+        "acceleration (held over the step)", "5", Q_FORMULA)
     swapped = np.vstack([T * I, 0.5 * T**2 * I])
-    yield q * swapped @ swapped.T, ("the blocks of B are swapped: a held acceleration moves the "
-                                    "position by T²/2 and the velocity by T, B = [T²/2 I; T I]")
-    for wrong_B in (np.vstack([T**2 * I, T * I]), np.vstack([0.5 * T * I, T * I]),
-                    np.vstack([0.5 * T**2 * I, I])):
-        yield q * wrong_B @ wrong_B.T, (
-            "a block of B is wrong: the position moves by ½ a T² = T²/2 · a and the velocity "
-            "by T · a, so B = [T²/2 I; T I]")
-    yield q * np.diag(np.diag(B @ B.T)), (
+    yield q * swapped @ swapped.T, _about(
+        "the blocks of B are swapped: the position's block is on top, the velocity's below",
+        "5", hints.formula("a held acceleration moves the position by T²/2 and the velocity by T, "
+                           "B = [T²/2 I; T I]"))
+    for wrong_B, block in ((np.vstack([T**2 * I, T * I]), "position"),
+                           (np.vstack([0.5 * T * I, T * I]), "position"),
+                           (np.vstack([0.5 * T**2 * I, I]), "velocity")):
+        yield q * wrong_B @ wrong_B.T, _about(
+            f"the {block} block of B is wrong: it is how far an acceleration held over the step "
+            f"moves the {block}", "5",
+            hints.formula("the position moves by ½ a T² = T²/2 · a and the velocity by T · a, so "
+                          "B = [T²/2 I; T I]"))
+    yield q * np.diag(np.diag(B @ B.T)), _about(
         "the cross terms are missing: the same acceleration moves position and velocity, so "
-        "they are correlated, off-diagonal blocks σ_a² T³/2 I")
+        "they are correlated", "5", hints.formula("off-diagonal blocks σ_a² T³/2 I"))
     unit = np.vstack([0.5 * I, I])
-    yield q * unit @ unit.T, "Q must use the time step T passed in, not 1: B = [T²/2 I; T I]"
+    yield q * unit @ unit.T, _about("Q must use the time step T passed in, not 1", "5", Q_FORMULA)
     yield F, "cv_matrices returned (Q, F): return them in the order (F, Q)"
 
 
 def _f_mistakes(T, F, Q):
     """Wrong F of the CV model, each with its hint."""
     I, Z = np.eye(3), np.zeros((3, 3))
-    yield F.T, "F is transposed: the position gains T times the velocity, F = [[I, T I], [0, I]]"
-    yield np.block([[I, I], [Z, I]]), "the position gains T · v over a step: F = [[I, T I], [0, I]]"
+    yield F.T, _about("F is transposed: the position gains from the velocity, not the other way "
+                      "round", "5", F_FORMULA)
+    yield np.block([[I, I], [Z, I]]), _about("the position gains T · v over a step, not v", "5", F_FORMULA)
     yield Q, "cv_matrices returned (Q, F): return them in the order (F, Q)"
 
 
@@ -332,27 +388,42 @@ def _f_mistakes(T, F, Q):
 def check_cv_process_noise(cv_matrices):
     """The learner's ``cv_matrices(T, sigma_a)`` returns (F, Q) of the 3-D CV model."""
     for T, sigma_a in _cv_cases():
-        result = _call(cv_matrices, T, sigma_a, hint="F and Q are (6, 6): the process-noise "
-                                                      "Jacobian B = [T²/2 I; T I] is (6, 3), the "
-                                                      "acceleration's covariance σ_a² I is (3, 3) "
-                                                      "and Q = B (σ_a² I) Bᵀ")
+        result = _call(cv_matrices, T, sigma_a, hint=_about("F and Q are (6, 6): the process-noise "
+                                                             "Jacobian B is (6, 3), the acceleration's "
+                                                             "covariance is (3, 3)", "5", Q_FORMULA))
         F_res, Q_res = _pair(result, "cv_matrices", ("F", "Q"))
         F, Q = _cv_reference(T, sigma_a)
         # default rtol 1e-7: any correct way to write F and Q is exact to ~1e-16 here; the
         # nearest mistake (T³/3 for T³/2 at T = 0.1) is off by 1e-1 relative in its blocks
         expect_close(F_res, F, f"F for T={T}", mistakes=_f_mistakes(T, F, Q),
-                     hint="F = [[I, T I], [0, I]]")
+                     hint=_about("over a step the position gains the velocity times T and the velocity "
+                                 "stays", "5", F_FORMULA))
         Q_arr = as_array(Q_res, f"Q for T={T}")
         if Q_arr.shape == (3, 3):
-            raise CheckFailed(f"Q for T={T} has shape (3, 3), expected (6, 6). Hint: B = "
-                              "[T²/2 I; T I] is (6, 3), so Q = B (σ_a² I) Bᵀ is (6, 6); Bᵀ B is "
-                              "(3, 3)")
+            raise CheckFailed(f"Q for T={T} has shape (3, 3), expected (6, 6). Hint: B is (6, 3), so "
+                              "B Bᵀ is (6, 6) and Bᵀ B is (3, 3) (lecture 03 §5): " + Q_FORMULA)
         value = expect_shape(Q_arr, Q.shape, f"Q for T={T}")
-        expect_close(value, Q, f"Q for T={T}, sigma_a={sigma_a}", mistakes=_q_mistakes(T, sigma_a, F, Q),
-                     hint=f"Q = B (σ_a² I) Bᵀ with B = [T²/2 I; T I], blocks σ_a² [[T⁴/4 I, T³/2 I], "
-                          f"[T³/2 I, T² I]]; the blocks that differ: "
-                          f"{_blocks_that_differ(value, Q)}")
+        if not np.allclose(value, Q, rtol=1e-7, atol=1e-9):   # the hint is built only for a wrong Q
+            expect_close(value, Q, f"Q for T={T}, sigma_a={sigma_a}", mistakes=_q_mistakes(T, sigma_a, F, Q),
+                         hint="Q carries the acceleration's variance into the position and the velocity "
+                              "through the process-noise Jacobian B (lecture 03 §5); the blocks that "
+                              f"differ: {_blocks_that_differ(value, Q)}. "
+                              + hints.formula("Q = B (σ_a² I) Bᵀ with B = [T²/2 I; T I], blocks "
+                                              "σ_a² [[T⁴/4 I, T³/2 I], [T³/2 I, T² I]]"))
         expect_symmetric(value, "Q")
+    for T, sigma_a in _cv_sweep():
+        # the sweep's own hint: the three cases above name every listed mistake first
+        every_step = _about("F and Q must hold for every step, very short and very long: build them "
+                            "from T as the lecture derives them, with no cut-off or special case for "
+                            "small or large T", "5", Q_FORMULA)
+        F, Q = _cv_reference(T, sigma_a)
+        F_res, Q_res = _pair(_call(cv_matrices, T, sigma_a, hint=every_step), "cv_matrices", ("F", "Q"))
+        expect_close(F_res, F, f"F for T={T:g}", hint=every_step)
+        value = expect_shape(Q_res, Q.shape, f"Q for T={T:g}, sigma_a={sigma_a}")
+        # rtol 1e-7 on the scaled Q (see _scaled_q): a correct Q is exact to ~1e-15 at every T
+        expect_close(_scaled_q(value, T, sigma_a), _scaled_q(Q, T, sigma_a),
+                     f"Q for T={T:g}, sigma_a={sigma_a} (each entry relative to its block's size)",
+                     hint=every_step)
 
 
 # ---------------------------------------------------------------------------------------
@@ -398,22 +469,26 @@ def _predict_cases():
 
 def _prior_mistakes(x_hat, P_hat, F, Q):
     """Wrong prior covariances a learner writes, each with the hint that names it."""
-    yield F @ P_hat @ F.T, "process noise is missing: P̌ = F P̂ Fᵀ + Q"
-    yield F @ P_hat @ F + Q, "transpose: P̌ = F P̂ Fᵀ + Q"
-    yield F.T @ P_hat @ F + Q, "order: P̌ = F P̂ Fᵀ + Q, not Fᵀ P̂ F"
-    yield F @ P_hat @ F.T - Q, "sign: the process noise adds uncertainty, P̌ = F P̂ Fᵀ + Q"
-    yield P_hat + Q, "F is missing: the covariance is propagated, P̌ = F P̂ Fᵀ + Q"
-    yield P_hat, "P̌ equals P̂: the prior covariance is P̌ = F P̂ Fᵀ + Q"
-    yield F @ P_hat + Q, "Fᵀ is missing on the right: P̌ = F P̂ Fᵀ + Q"
-    yield F @ (P_hat + Q) @ F.T, ("Q was propagated through F: Q is the covariance the noise "
-                                  "adds during the step, already as it stands at the step's end "
-                                  "(B carried the held acceleration there), so Q is added after the "
-                                  "propagation of P̂, not before: P̌ = F P̂ Fᵀ + Q")
-    yield F * P_hat * F.T + Q, ("element-wise product: multiply matrices with @ "
-                                "(P̌ = F @ P̂ @ F.T + Q), not *")
+    yield F @ P_hat @ F.T, _about("the process noise is missing: the step adds its uncertainty", "2",
+                                  PRIOR_FORMULA)
+    yield F @ P_hat @ F + Q, _about("a transpose is missing: P̂ is carried through F on both sides",
+                                    "2", PRIOR_FORMULA)
+    yield F.T @ P_hat @ F + Q, _about("order: not Fᵀ P̂ F, F stands on the left", "2", PRIOR_FORMULA)
+    yield F @ P_hat @ F.T - Q, _about("sign: the process noise adds uncertainty", "2", PRIOR_FORMULA)
+    yield P_hat + Q, _about("F is missing: the covariance is carried through the motion model", "2",
+                            PRIOR_FORMULA)
+    yield P_hat, _about("P̌ equals P̂: the prior covariance carries P̂ through the motion model and "
+                        "adds the process noise", "2", PRIOR_FORMULA)
+    yield F @ P_hat + Q, _about("Fᵀ is missing on the right", "2", PRIOR_FORMULA)
+    yield F @ (P_hat + Q) @ F.T, _about(
+        "Q was propagated through F: Q is the covariance the noise adds during the step, already "
+        "as it stands at the step's end (B carried the held acceleration there), so Q is added "
+        "after the propagation of P̂, not before", "2", PRIOR_FORMULA)
+    yield F * P_hat * F.T + Q, _about("element-wise product: multiply matrices with @, not *", "2",
+                                      hints.formula("P̌ = F @ P̂ @ F.T + Q"))
     yield F @ P_hat @ F.T + np.sqrt(np.abs(Q)), ("Q already holds variances: add Q as it is, "
-                                                 "not its square root")
-    yield F @ P_hat @ F.T + Q @ Q, "Q already holds variances: add Q once, not Q Q"
+                                                 "not its square root (lecture 03 §2)")
+    yield F @ P_hat @ F.T + Q @ Q, "Q already holds variances: add Q once, not Q Q (lecture 03 §2)"
 
 
 @check
@@ -422,16 +497,23 @@ def check_kf_predict(kf_predict):
     for case, (x_check, P_check) in _predict_cases():
         x_hat, P_hat, F, Q = case
         n = len(x_hat)
-        result = _call(kf_predict, *case, hint="x̂ is (n,), P̂, F and Q are (n, n): x̌ = F @ x̂ "
-                                               "and P̌ = F @ P̂ @ F.T + Q")
+        result = _call(kf_predict, *case, hint="x̂ is (n,), P̂, F and Q are (n, n) (lecture 03 §2): "
+                                               + hints.formula("x̌ = F @ x̂ and P̌ = F @ P̂ @ F.T + Q"))
         x_res, P_res = _pair(result, "kf_predict", ("x_check", "P_check"), ((n,), (n, n)))
         # default rtol 1e-7: multi_dot, einsum or another bracketing agree to ~1e-15
-        _expect(x_res, x_check, "x_check", formula="x̌ = F x̂", mistakes=[
-            (F.T @ x_hat, "the prior mean is F x̂, not Fᵀ x̂ (x̂ @ F is Fᵀ x̂)"),
-            (x_hat, "x̌ equals x̂: the prior mean is propagated, x̌ = F x̂"),
+        mean_formula = hints.formula("x̌ = F x̂")
+        _expect(x_res, x_check, "x_check",
+                formula=_about("the prior mean is the posterior mean carried through the motion model",
+                               "2", mean_formula), mistakes=[
+            (F.T @ x_hat, _about("the motion model multiplies the state from the left, not Fᵀ x̂ "
+                                 "(x̂ @ F is Fᵀ x̂)", "2", mean_formula)),
+            (x_hat, _about("x̌ equals x̂: the prior mean is carried through the motion model", "2",
+                           mean_formula)),
         ])
-        _expect(P_res, P_check, "P_check", formula="P̌ = F P̂ Fᵀ + Q",
-                mistakes=_with_symmetrised(_prior_mistakes(x_hat, P_hat, F, Q)))
+        _expect(P_res, P_check, "P_check",
+                formula=_about("the prior covariance carries P̂ through the motion model and adds the "
+                               "process noise", "2", PRIOR_FORMULA),
+                mistakes=with_symmetrised(_prior_mistakes(x_hat, P_hat, F, Q)))
 
 
 # ---------------------------------------------------------------------------------------
@@ -446,32 +528,34 @@ def _s_mistakes(P_check, G, R):
     sqrtm_R = (V * np.sqrt(w)) @ V.T
     yield R, ("S is the covariance of the innovation y − G x̌ before y is seen: the prior's error "
               "seen through G adds to the measurement noise. S = R leaves out the prior's "
-              "uncertainty, as if x̌ were exact (lecture 03 §3: Σ_yy)")
-    yield GPGt, "S = G P̌ Gᵀ + R: the measurement noise is missing"
-    yield GPGt + np.sqrt(np.abs(R)), ("R already holds variances (σ²): S = G P̌ Gᵀ + R, not "
-                                      "+ √R (a standard deviation)")
-    yield GPGt + sqrtm_R, ("R already holds variances (σ²): S = G P̌ Gᵀ + R, not + √R "
-                           "(a standard deviation)")
+              "uncertainty, as if x̌ were exact (lecture 03 §3, Σ_yy): " + S_FORMULA)
+    yield GPGt, _about("the measurement noise is missing from S", "3", S_FORMULA)
+    root = "R already holds variances (σ²): add R, not √R (a standard deviation)"
+    yield GPGt + np.sqrt(np.abs(R)), _about(root, "3", S_FORMULA)
+    yield GPGt + sqrtm_R, _about(root, "3", S_FORMULA)
     # for a diagonal R the two are one value: one hint names both
-    squared = ("R already holds variances (σ²): S = G P̌ Gᵀ + R, not + R R (or R**2), which "
-               "squares them again")
+    squared = _about("R already holds variances (σ²): add R, not R R (or R**2), which squares them "
+                     "again", "3", S_FORMULA)
     yield GPGt + R @ R, squared
     yield GPGt + R * R, squared
-    yield GPGt + np.linalg.inv(R), ("S = G P̌ Gᵀ + R adds the covariance R itself, not its "
-                                    "inverse R⁻¹")
-    yield GPGt + np.eye(m), ("S = G P̌ Gᵀ + R: you added the identity; use the R passed in "
-                             "(R = I only when every σ is 1)")
-    yield GPGt - R, "sign: the measurement noise adds uncertainty, S = G P̌ Gᵀ + R"
+    yield GPGt + np.linalg.inv(R), _about("S adds the covariance R itself, not its inverse R⁻¹", "3",
+                                          S_FORMULA)
+    yield GPGt + np.eye(m), _about("you added the identity to S; use the R passed in (R = I only when "
+                                   "every σ is 1)", "3", S_FORMULA)
+    yield GPGt - R, _about("sign: the measurement noise adds uncertainty", "3", S_FORMULA)
 
 
 def _k_mistakes(P_check, G, R, S, K):
     """Wrong gains computed with the right S, each with its hint."""
     PGt = P_check @ G.T
-    yield PGt @ np.linalg.inv(R), "K = P̌ Gᵀ S⁻¹ with S = G P̌ Gᵀ + R, not R⁻¹"
-    yield linalg.gain(G @ P_check, G @ P_check @ G.T), "S = G P̌ Gᵀ + R: R is missing in the gain"
-    yield PGt @ S, "K = P̌ Gᵀ S⁻¹: invert S (np.linalg.inv or, better, np.linalg.solve)"
-    yield linalg.gain(G, S), "K = P̌ Gᵀ S⁻¹: P̌ is missing"
-    yield PGt, "K = P̌ Gᵀ S⁻¹: the inverse of S is missing"
+    yield PGt @ np.linalg.inv(R), _about("the gain inverts S, the innovation's covariance, not R⁻¹",
+                                         "3", GAIN_FORMULA)
+    yield linalg.gain(G @ P_check, G @ P_check @ G.T), _about("R is missing in the gain's S", "3",
+                                                               S_FORMULA)
+    yield PGt @ S, _about("the gain divides by S: invert S (np.linalg.inv or, better, "
+                          "np.linalg.solve)", "3", GAIN_FORMULA)
+    yield linalg.gain(G, S), _about("P̌ is missing in the gain", "3", GAIN_FORMULA)
+    yield PGt, _about("the inverse of S is missing in the gain", "3", GAIN_FORMULA)
     # the gain of each wrong S, for a K computed from its own (wrong) S expression
     for S_wrong, why in _s_mistakes(P_check, G, R):
         try:
@@ -488,10 +572,13 @@ def check_kf_gain(kf_gain):
         result = _call(kf_gain, P_check, G, R, hint=SHAPES_UPDATE)
         K_res, S_res = _pair(result, "kf_gain", ("K", "S"), ((n, m), (m, m)))
         # default rtol 1e-7: inverse, solve, pinv or Cholesky agree to ~1e-13 (cond(S) < 1e3)
-        _expect(S_res, ref.S, "S", formula="S = G P̌ Gᵀ + R", mistakes=_s_mistakes(P_check, G, R))
-        _expect(K_res, ref.K, "K", formula="K = P̌ Gᵀ S⁻¹ is (n, m): it turns an innovation (m,) "
-                                           "into a state correction (n,); np.linalg.solve(S, G P̌) "
-                                           "gives S⁻¹ G P̌, which is Kᵀ",
+        _expect(S_res, ref.S, "S",
+                formula=_about("S is the covariance of the innovation: the prior's uncertainty seen "
+                               "through G, plus the measurement noise", "3", S_FORMULA),
+                mistakes=_s_mistakes(P_check, G, R))
+        _expect(K_res, ref.K, "K", formula=_about("K is (n, m): it turns an innovation (m,) into a "
+                                                  "state correction (n,); np.linalg.solve(S, G P̌) "
+                                                  "gives S⁻¹ G P̌, which is Kᵀ", "3", GAIN_FORMULA),
                 mistakes=_k_mistakes(P_check, G, R, ref.S, ref.K))
 
 
@@ -501,12 +588,13 @@ def check_kf_gain(kf_gain):
 
 def _posterior_mean_mistakes(x_check, y, G, K, innovation):
     """Wrong posterior means (with the right gain), each with its hint."""
-    sign = ("sign of the innovation: it is y − G x̌ (measured minus predicted), and the mean "
-            "moves towards y: x̂ = x̌ + K (y − G x̌)")
+    sign = _about("sign of the innovation: it is measured minus predicted, and the mean moves "
+                  "towards y", "3", MEAN_FORMULA)
     yield x_check - K @ innovation, sign
-    yield x_check + K @ y, ("the innovation is y − G x̌: subtract the predicted measurement "
-                            "G x̌ from y")
-    yield x_check, "x̂ equals the prior x̌: add the correction, x̂ = x̌ + K (y − G x̌)"
+    yield x_check + K @ y, _about("the innovation is measured minus predicted: subtract the predicted "
+                                  "measurement from y", "3", hints.formula("y − G x̌"))
+    yield x_check, _about("x̂ equals the prior x̌: add the correction, the gain times the innovation",
+                          "3", MEAN_FORMULA)
     m = len(y)
     yield x_check + K @ (y - x_check[:m]), (
         "the predicted measurement is G x̌: G maps the state into measurement space. y − x̌[:m] "
@@ -525,27 +613,32 @@ def _posterior_cov_mistakes(P_check, G, R, S, K):
     I_KG = np.eye(len(P_check)) - K @ G
     A = I_KG @ P_check @ I_KG.T
     w, V = np.linalg.eigh(R)
-    joseph = "Joseph form: P̂ = (I − K G) P̌ (I − K G)ᵀ + K R Kᵀ"
-    yield A, "the Joseph form needs its second term: + K R Kᵀ"
-    yield A + K @ K.T, f"the second term is K R Kᵀ, not K Kᵀ: R is missing. {joseph}"
-    yield A + K @ np.linalg.inv(R) @ K.T, f"the second term is K R Kᵀ, not K R⁻¹ Kᵀ. {joseph}"
+    def joseph(why):
+        return _about(why, "8", JOSEPH_FORMULA)
+
+    short = hints.formula("P̂ = (I − K G) P̌")
+    yield A, joseph("the Joseph form needs its second term, the measurement noise carried by the gain")
+    yield A + K @ K.T, joseph("the second term is missing R: not K Kᵀ")
+    yield A + K @ np.linalg.inv(R) @ K.T, joseph("the second term carries R itself, not K R⁻¹ Kᵀ")
     # (I − K G) P̌ (I − K G)ᵀ + K S Kᵀ = P̌ − K R Kᵀ for the optimal gain: one hint names both
-    r_for_s = ("R and S swapped: the Joseph form's second term is + K R Kᵀ (the measurement "
-               "noise), not K S Kᵀ; the short form is P̂ = P̌ − K S Kᵀ (with S, not R)")
+    r_for_s = joseph("R and S swapped: the Joseph form's second term carries the measurement noise R, "
+                     "not K S Kᵀ; the short form subtracts K S Kᵀ (with S, not R)")
     yield A + K @ S @ K.T, r_for_s
     yield A + K @ ((V * np.sqrt(w)) @ V.T) @ K.T, \
-        f"R already holds variances: the second term is K R Kᵀ, not K √R Kᵀ. {joseph}"
+        joseph("R already holds variances: the second term carries R, not K √R Kᵀ")
     yield A + K @ np.sqrt(np.abs(R)) @ K.T, \
-        f"R already holds variances: the second term is K R Kᵀ, not K √R Kᵀ. {joseph}"
-    yield A + K @ R @ R @ K.T, f"R already holds variances: K R Kᵀ, not K R R Kᵀ. {joseph}"
-    yield A - K @ R @ K.T, f"sign: the measurement noise adds, + K R Kᵀ. {joseph}"
+        joseph("R already holds variances: the second term carries R, not K √R Kᵀ")
+    yield A + K @ R @ R @ K.T, joseph("R already holds variances: not K R R Kᵀ")
+    yield A - K @ R @ K.T, joseph("sign: the measurement noise adds to the second term")
     yield I_KG.T @ P_check @ I_KG + K @ R @ K.T, \
-        f"transpose on the wrong side: (I − K G) P̌ (I − K G)ᵀ. {joseph}"
-    yield I_KG @ P_check @ I_KG + K @ R @ K.T, f"transpose missing: (I − K G) P̌ (I − K G)ᵀ. {joseph}"
-    yield P_check - K @ G, "P̂ = (I − K G) P̌: multiply by P̌"
-    yield P_check, "P̂ equals the prior P̌: the update shrinks it, P̂ = (I − K G) P̌"
-    yield P_check + K @ G @ P_check, "sign: the update shrinks the covariance, P̂ = P̌ − K G P̌"
-    yield P_check @ I_KG, "order: P̂ = (I − K G) P̌, not P̌ (I − K G)"
+        joseph("transpose on the wrong side: the transposed factor stands on the right")
+    yield I_KG @ P_check @ I_KG + K @ R @ K.T, joseph("transpose missing on the right factor")
+    yield P_check - K @ G, _about("K G must multiply P̌: multiply by P̌", "3", short)
+    yield P_check, _about("P̂ equals the prior P̌: the update shrinks it", "3", short)
+    yield P_check + K @ G @ P_check, _about("sign: the update shrinks the covariance", "3",
+                                            hints.formula("P̂ = P̌ − K G P̌"))
+    yield P_check @ I_KG, _about("order: not P̌ (I − K G), the factor I − K G stands on the left", "3",
+                                 short)
     yield P_check - K @ R @ K.T, r_for_s
 
 
@@ -572,17 +665,19 @@ def check_kf_update(kf_update):
         if _is_the_prior(x_res, P_res, x_check, P_check):
             raise CheckFailed("the posterior equals the prior (x̂ = x̌ and P̂ = P̌): the measurement y "
                               "was not used. Hint: the update corrects the prior mean by the gain "
-                              "times the innovation y − G x̌ and shrinks the covariance, in Joseph "
-                              "form (lecture 03 §3 and §8)")
+                              "times the innovation and shrinks the covariance, in Joseph "
+                              "form (lecture 03 §3 and §8): " + MEAN_FORMULA)
         # default rtol 1e-7: the short form (I − K G) P̌ (the seed lecture's form), P̌ − K S Kᵀ
         # and the Joseph form agree to ~1e-13 for the optimal gain, so all are accepted
-        _expect(x_res, ref.x_hat, "x_hat", formula="x̂ = x̌ + K (y − G x̌)",
+        _expect(x_res, ref.x_hat, "x_hat",
+                formula=_about("the posterior mean corrects the prior by the gain times the innovation",
+                               "3", MEAN_FORMULA),
                 mistakes=itertools.chain(
                     _posterior_mean_mistakes(x_check, y, G, ref.K, ref.innovation),
                     _gain_inside_update_mistakes(x_check, P_check, G, R, ref)))
         _expect(P_res, ref.P_hat, "P_hat",
-                formula="Joseph form: P̂ = (I − K G) P̌ (I − K G)ᵀ + K R Kᵀ",
-                mistakes=_with_symmetrised(_posterior_cov_mistakes(P_check, G, R, ref.S, ref.K)))
+                formula=_about("the posterior covariance, in Joseph form", "8", JOSEPH_FORMULA),
+                mistakes=with_symmetrised(_posterior_cov_mistakes(P_check, G, R, ref.S, ref.K)))
         expect_symmetric(P_res, "P_hat")
 
 
@@ -717,27 +812,49 @@ def _excerpt_label(name: str, start: int, stop: int | None) -> str:
     return f"the '{name}' excerpt's fixes {start} to {stop - 1}"
 
 
+#: The whole run's known mistakes: (the :func:`_gnss_kf_variant` keywords for (σ_a, σ_gnss), hint).
+_RUN_MISTAKES = (
+    (lambda sigma_a, sigma_gnss: dict(r_var=sigma_gnss),
+     _about("R holds variances, and you used the standard deviation σ_gnss", "9",
+            hints.formula("R = σ_gnss² I"))),
+    (lambda sigma_a, sigma_gnss: dict(r_var=sigma_gnss**4),
+     _about("σ_gnss is squared twice in R", "9", hints.formula("R = σ_gnss² I"))),
+    (lambda sigma_a, sigma_gnss: dict(r_var=1.0),
+     _about("use the sigma_gnss passed in, not R = I", "9", hints.formula("R = σ_gnss² I"))),
+    (lambda sigma_a, sigma_gnss: dict(q_sigma=sigma_a**2),
+     "cv_matrices takes the standard deviation σ_a and squares it itself: pass sigma_a, not "
+     "sigma_a**2"),
+    (lambda sigma_a, sigma_gnss: dict(q_sigma=np.sqrt(sigma_a)),
+     _about("σ_a was not squared: Q holds the acceleration's variance", "5", Q_FORMULA)),
+    (lambda sigma_a, sigma_gnss: dict(q_sigma=1.0),
+     "the process noise must use the sigma_a passed in, not 1"),
+    *((lambda sigma_a, sigma_gnss, step=step: dict(step=step),
+       _about("each prediction uses its own time step, the time since the previous fix: the fixes "
+              "are not exactly 1 s apart", "9", hints.formula("T = t[k] − t[k−1]")))
+      for step in (lambda t, k: 1.0, lambda t, k: float(np.mean(np.diff(t))),
+                   lambda t, k: t[k] - t[0], lambda t, k: t[k])),
+    (lambda sigma_a, sigma_gnss: dict(store_prior=True),
+     "you stored the prior (after the prediction): store the posterior of each step, after its "
+     "update (lecture 03 §9)"),
+    (lambda sigma_a, sigma_gnss: dict(lag=1), "step k updates with its own fix y[k] (off by one: y[k − 1])"),
+    (lambda sigma_a, sigma_gnss: dict(predict=False),
+     "each step predicts (kf_predict) before it updates (lecture 03 §9)"),
+)
+
+
 def _run_mistakes(t, y, sigma_a, sigma_gnss):
     """Runs with one learner mistake each, and the hint naming it (computed lazily)."""
-    def variant(**kw):
-        return _gnss_kf_variant(t, y, sigma_a, sigma_gnss, **kw)
+    for keywords, why in _RUN_MISTAKES:
+        yield _gnss_kf_variant(t, y, sigma_a, sigma_gnss, **keywords(sigma_a, sigma_gnss)), why
 
-    yield variant(r_var=sigma_gnss), ("R = σ_gnss² I: R holds variances, and you used the standard "
-                                      "deviation σ_gnss")
-    yield variant(r_var=sigma_gnss**4), "R = σ_gnss² I: σ_gnss is squared twice"
-    yield variant(r_var=1.0), "R = σ_gnss² I: use the sigma_gnss passed in, not R = I"
-    yield variant(q_sigma=sigma_a**2), ("cv_matrices takes the standard deviation σ_a and squares "
-                                        "it itself: pass sigma_a, not sigma_a**2")
-    yield variant(q_sigma=np.sqrt(sigma_a)), "Q = B (σ_a² I) Bᵀ: σ_a was not squared"
-    yield variant(q_sigma=1.0), "the process noise must use the sigma_a passed in, not 1"
-    for step in (lambda t, k: 1.0, lambda t, k: float(np.mean(np.diff(t))),
-                 lambda t, k: t[k] - t[0], lambda t, k: t[k]):
-        yield variant(step=step), ("each prediction uses its own time step T = t[k] − t[k−1]: "
-                                   "the fixes are not exactly 1 s apart")
-    yield variant(store_prior=True), ("you stored the prior (after the prediction): store the "
-                                      "posterior of each step, after its update")
-    yield variant(lag=1), "step k updates with its own fix y[k] (off by one: y[k − 1])"
-    yield variant(predict=False), "each step predicts (kf_predict) before it updates"
+
+@functools.lru_cache(maxsize=None)
+def _run_mistake(index: int, j: int):
+    """The run of mistake ``j`` of :data:`_RUN_MISTAKES` on whole-run case ``index``, built only
+    when a learner's run is wrong."""
+    name, sigma_a, sigma_gnss, start, stop = _run_cases()[index]
+    t, y = _fixes(name, start, stop)
+    return _gnss_kf_variant(t, y, sigma_a, sigma_gnss, **_RUN_MISTAKES[j][0](sigma_a, sigma_gnss))
 
 
 def _initial_state_hint(x0, P0, y0, sigma_gnss, sigma_v0=SIGMA_V0) -> str | None:
@@ -750,10 +867,11 @@ def _initial_state_hint(x0, P0, y0, sigma_gnss, sigma_v0=SIGMA_V0) -> str | None
     G = position_observation()
     updated = kf.kf_update(x_ref, P_ref, y0, G, pos_var * np.eye(3), joseph=True)
     if np.allclose(P0, updated.P_hat, rtol=1e-6, atol=1e-9):
-        return ("row 0 was updated with y[0], but the initial state already is that fix: it "
-                "counts twice. Row 0 is the initial state itself, x₀ = [y[0], 0]")
+        return _about("row 0 was updated with y[0], but the initial state already is that fix: it "
+                      "counts twice. Row 0 is the initial state itself", "9", hints.formula("x₀ = [y[0], 0]"))
     if not np.allclose(x0, x_ref, rtol=1e-9, atol=1e-9):
-        return "the initial state is x₀ = [y[0], 0]: the first fix, with zero velocity"
+        return _about("the initial state is the first fix, with zero velocity", "9",
+                      hints.formula("x₀ = [y[0], 0]"))
     got_pos, got_vel = np.diag(P0)[:3], np.diag(P0)[3:]
     parts = []
     for got, var, sigma, what in ((got_pos, pos_var, sigma_gnss, "position"),
@@ -769,8 +887,9 @@ def _initial_state_hint(x0, P0, y0, sigma_gnss, sigma_v0=SIGMA_V0) -> str | None
     off_diagonal = P0 - np.diag(np.diag(P0))
     if np.any(np.abs(off_diagonal) > 1e-12):
         parts.append("the initial covariance is diagonal")
-    return ("initial covariance P₀ = diag(σ_gnss² I, σ_v0² I) (the start velocity is unknown): "
-            + "; ".join(parts))
+    return _about("; ".join(parts) + ". The initial covariance holds the variance of the first fix and "
+                  "that of the unknown start velocity", "9",
+                  hints.formula("P₀ = diag(σ_gnss² I, σ_v0² I)"))
 
 
 def _same_run(x_hat, P_hat, x_ref, P_ref) -> bool:
@@ -779,15 +898,68 @@ def _same_run(x_hat, P_hat, x_ref, P_ref) -> bool:
     return bool(np.allclose(x_hat, x_ref, rtol=1e-6, atol=1e-6) and np.allclose(P_hat, P_ref, rtol=1e-6, atol=1e-9))
 
 
-def _reject_known_run_mistakes(x_hat, P_hat, y, sigma_gnss, mistakes, where: str) -> None:
-    """Raise CheckFailed if a run's initial state is wrong or the run is one of ``mistakes``
-    (((x_hat, P_hat), hint) pairs); return if it is none of them."""
+def _learner_runs(fn, calls, hint: str) -> list:
+    """The learner's run on each of ``calls`` (argument tuples); a call that raised leaves its
+    :class:`CheckFailed` in its place, raised when the check reaches that case (the messages
+    come in the cases' order, as with one call at a time)."""
+    out = []
+    for args in calls:
+        try:
+            out.append(_call(fn, *args, hint=hint))
+        except CheckFailed as exc:
+            out.append(exc)
+    return out
+
+
+def _result(got):
+    """A result of :func:`_learner_runs`, raising the failure stored in its place."""
+    if isinstance(got, CheckFailed):
+        raise got
+    return got
+
+
+def _is_run(got, wrong) -> bool:
+    """Whether a learner's result (a pair, as returned) is the run ``wrong`` ((x_hat, P_hat));
+    False for a result of another form or shape."""
+    if wrong is None or isinstance(got, CheckFailed) or not isinstance(got, (tuple, list)) or len(got) != 2:
+        return False
+    try:
+        x_hat, P_hat = (np.asarray(value, dtype=float) for value in got)
+    except (TypeError, ValueError):
+        return False
+    x_wrong, P_wrong = wrong
+    return x_hat.shape == x_wrong.shape and P_hat.shape == P_wrong.shape and \
+        _same_run(x_hat, P_hat, x_wrong, P_wrong)
+
+
+def _reject_known_run_mistakes(got: list, index: int, y, sigma_gnss, mistakes, run_of, where: str) -> None:
+    """Raise CheckFailed if run ``index``'s initial state is wrong or a listed mistake explains
+    the learner's runs (:func:`harness.known_mistake`: on every case, else on this one); return
+    if none does.
+
+    Parameters
+    ----------
+    got : list
+        The learner's results on every case of the check (:func:`_learner_runs`).
+    index : int
+        The case whose run is wrong (its shapes are checked).
+    y, sigma_gnss
+        That case's fixes and GNSS noise, for the initial state's hint.
+    mistakes : sequence of str
+        The hints of the listed mistakes, in order.
+    run_of : callable
+        ``run_of(case, j)``: the run (x_hat, P_hat) of mistake ``j`` on a case.
+    where : str
+        The run, as the message names it.
+    """
+    x_hat, P_hat = (np.asarray(value, dtype=float) for value in got[index])
     initial = _initial_state_hint(x_hat[0], P_hat[0], y[0], sigma_gnss)
     if initial is not None:
         raise CheckFailed(f"row 0 of x_hat / P_hat on {where} is wrong. Hint: {initial}")
-    for (x_wrong, P_wrong), why in mistakes:
-        if _same_run(x_hat, P_hat, x_wrong, P_wrong):
-            raise CheckFailed(f"the run on {where} is wrong. Hint: {why}")
+    why = known_mistake(got, range(len(got)), list(enumerate(mistakes)), lambda g, w, _: _is_run(g, w),
+                        evaluate=lambda j, case: run_of(case, j), case=index)
+    if why is not None:
+        raise CheckFailed(f"the run on {where} is wrong. Hint: {why}")
 
 
 @check(uses={"cv_matrices": "cv_process_noise", "kf_predict": "kf_predict", "kf_gain": "kf_gain",
@@ -801,13 +973,16 @@ def check_gnss_kf_run(run_gnss_kf):
     step) where the fixes are up to 1.4 ms from 1 s apart, exceeds the tolerance more than
     100-fold.
     """
-    for name, sigma_a, sigma_gnss, start, stop in _run_cases():
-        t, y, x_ref, P_ref = _run_reference(name, sigma_a, sigma_gnss, start, stop)
+    cases = _run_cases()
+    references = [_run_reference(*case) for case in cases]
+    results = _learner_runs(run_gnss_kf, [(t, y, case[1], case[2]) for case, (t, y, *_) in zip(cases, references)],
+                            hint=_about("y is (N, 3), G is (3, 6), R is (3, 3); each step k ≥ 1 predicts "
+                                        "over its own time step and updates with y[k]", "9",
+                                        hints.formula("G = [I 0], R = σ_gnss² I, T = t[k] − t[k−1]")))
+    for index, ((name, sigma_a, sigma_gnss, start, stop), (t, y, x_ref, P_ref)) in enumerate(zip(cases, references)):
         excerpt = _excerpt_label(name, start, stop)
         N = len(t)
-        result = _call(run_gnss_kf, t, y, sigma_a, sigma_gnss,
-                       hint="y is (N, 3); G = [I 0] is (3, 6), R = σ_gnss² I (3, 3); each step "
-                            "k ≥ 1 predicts over t[k] − t[k−1] and updates with y[k]")
+        result = _result(results[index])
         x_res, P_res = _pair(result, "run_gnss_kf", ("x_hat (N, 6)", "P_hat (N, 6, 6)"))
         rows = "one row per fix: row 0 is the initial state, row k ≥ 1 the posterior after the fix y[k]"
         for value, ref, what in ((x_res, x_ref, "x_hat"), (P_res, P_ref, "P_hat")):
@@ -819,17 +994,17 @@ def check_gnss_kf_run(run_gnss_kf):
         P_hat = expect_shape(P_res, P_ref.shape, "P_hat")
         if _same_run(x_hat, P_hat, x_ref, P_ref):
             continue
-        _reject_known_run_mistakes(x_hat, P_hat, y, sigma_gnss, _run_mistakes(t, y, sigma_a, sigma_gnss),
-                                   f"{excerpt} (σ_a = {sigma_a}, σ_gnss = {sigma_gnss})")
+        _reject_known_run_mistakes(results, index, y, sigma_gnss, [why for _, why in _RUN_MISTAKES],
+                                   _run_mistake, f"{excerpt} (σ_a = {sigma_a}, σ_gnss = {sigma_gnss})")
         truth = truth_at(name, t)
         # 3-D position RMSE = norm of the per-axis RMSEs (NaN in a learner's x_hat stays NaN)
         err = np.linalg.norm(rmse(x_hat[:, :3], truth, axis=0))
         err_ref = np.linalg.norm(rmse(x_ref[:, :3], truth, axis=0))
         expect_close(x_hat, x_ref, f"x_hat on {excerpt}", rtol=1e-6, atol=1e-6,
                      hint=f"your position RMSE against ground truth is {err:.3f} m, the reference "
-                          f"reaches {err_ref:.3f} m. Check R = σ_gnss² I, Q from "
-                          "cv_matrices(t[k] − t[k−1], sigma_a) and that each row stores the "
-                          "posterior")
+                          f"reaches {err_ref:.3f} m. Check the noise levels of R and Q, each step's own "
+                          "time step and that each row stores the posterior (lecture 03 §9): "
+                          + hints.formula("R = σ_gnss² I, Q from cv_matrices(t[k] − t[k−1], sigma_a)"))
         expect_close(P_hat, P_ref, f"P_hat on {excerpt}", rtol=1e-6, atol=1e-9,
                      hint="x_hat is right but P_hat is not: store the posterior covariance of "
                           "each step, the one returned with x_hat")
@@ -963,27 +1138,41 @@ def _gaps_reference(name: str, sigma_a: float, sigma_gnss: float, start: int = 0
     return (t, y, *reference_gnss_kf_gaps(t, y, sigma_a, sigma_gnss))
 
 
+#: What every hint of a missing fix ends with: what the filter knows at t[k] without its fix.
+_AFTER_A_GAP = ("With no fix the posterior is the prior (lecture 03 §3): at t[k] the best estimate "
+                "is the prediction to t[k], and the next step predicts on from there")
+
+#: The challenge's known mistakes at the missing fixes: (``at_gap`` of :func:`_gaps_variant`, hint).
+_GAP_MISTAKES = (
+    ("stale", "at a missing fix you stored the last posterior and skipped the prediction: time "
+              f"passes during an outage, and the car moves on. {_AFTER_A_GAP}"),
+    ("stale_then_long",
+     "the rows of the missing fixes hold the last posterior, and the next fix predicts over the "
+     "whole gap at once: store the prediction to t[k] at each missing fix, and predict step by "
+     "step (one long step holds one acceleration for the whole gap, which is another model). "
+     + _AFTER_A_GAP),
+    ("predicted", "a missing fix is no measurement: updating with the predicted position G x̌ leaves "
+                  f"the mean but shrinks P̂ as if a fix had arrived. {_AFTER_A_GAP}"),
+    ("last_fix", "a missing fix is not the last fix received again: that fix was used already, and "
+                 f"using it twice pulls the estimate back to where the car was. {_AFTER_A_GAP}"),
+    ("zero", "a missing fix is no fix at the origin (np.nan_to_num makes NaN 0): skip its update. "
+             + _AFTER_A_GAP),
+)
+
+
 def _gaps_mistakes(t, y, sigma_a, sigma_gnss):
     """Runs with one mistake at the missing fixes each, and the hint naming it (lazily)."""
-    after = ("With no fix the posterior is the prior (lecture 03 §3): at t[k] the best estimate "
-             "is the prediction to t[k], and the next step predicts on from there")
-    yield _gaps_variant(t, y, sigma_a, sigma_gnss, at_gap="stale"), (
-        "at a missing fix you stored the last posterior and skipped the prediction: time passes "
-        f"during an outage, and the car moves on. {after}")
-    yield _gaps_variant(t, y, sigma_a, sigma_gnss, at_gap="stale_then_long"), (
-        "the rows of the missing fixes hold the last posterior, and the next fix predicts over the "
-        "whole gap at once: store the prediction to t[k] at each missing fix, and predict step by "
-        "step (one long step holds one acceleration for the whole gap, which is another model). "
-        + after)
-    yield _gaps_variant(t, y, sigma_a, sigma_gnss, at_gap="predicted"), (
-        "a missing fix is no measurement: updating with the predicted position G x̌ leaves the mean "
-        f"but shrinks P̂ as if a fix had arrived. {after}")
-    yield _gaps_variant(t, y, sigma_a, sigma_gnss, at_gap="last_fix"), (
-        "a missing fix is not the last fix received again: that fix was used already, and using it "
-        f"twice pulls the estimate back to where the car was. {after}")
-    yield _gaps_variant(t, y, sigma_a, sigma_gnss, at_gap="zero"), (
-        "a missing fix is no fix at the origin (np.nan_to_num makes NaN 0): skip its update. "
-        + after)
+    for at_gap, why in _GAP_MISTAKES:
+        yield _gaps_variant(t, y, sigma_a, sigma_gnss, at_gap=at_gap), why
+
+
+@functools.lru_cache(maxsize=None)
+def _gaps_mistake(index: int, j: int):
+    """The run of mistake ``j`` of :data:`_GAP_MISTAKES` on gaps case ``index`` (built only when a
+    learner's run is wrong)."""
+    name, sigma_a, sigma_gnss, start, stop, rows = _gaps_cases()[index]
+    t, y, *_ = _gaps_reference(name, sigma_a, sigma_gnss, start, stop, rows)
+    return _gaps_variant(t, y, sigma_a, sigma_gnss, at_gap=_GAP_MISTAKES[j][0])
 
 
 @check(uses={"cv_matrices": "cv_process_noise", "kf_predict": "kf_predict", "kf_gain": "kf_gain",
@@ -997,16 +1186,20 @@ def check_gnss_kf_gaps(run_gnss_kf_gaps):
     the nearest mistake, the last fix's prior replaced by its stale posterior, differs by
     more than 1e-2 m in that row.
     """
-    for name, sigma_a, sigma_gnss, start, stop, rows in _gaps_cases():
-        t, y, x_ref, P_ref = _gaps_reference(name, sigma_a, sigma_gnss, start, stop, rows)
+    cases = _gaps_cases()
+    references = [_gaps_reference(*case) for case in cases]
+    # a copy: a learner's in-place edit of y (np.nan_to_num(y, copy=False)) must not
+    # change the cached case
+    results = _learner_runs(run_gnss_kf_gaps, [(t, y.copy(), case[1], case[2])
+                                               for case, (t, y, *_) in zip(cases, references)],
+                            hint="y is (N, 3) with NaN rows where a fix is missing; x_hat is (N, 6) "
+                                 "and P_hat (N, 6, 6), one row per time t[k]")
+    for index, ((name, sigma_a, sigma_gnss, start, stop, rows), (t, y, x_ref, P_ref)) in \
+            enumerate(zip(cases, references)):
         excerpt = _excerpt_label(name, start, stop)
         N = len(t)
         missing = set(np.flatnonzero(np.all(np.isnan(y), axis=1)).tolist())
-        # a copy: a learner's in-place edit of y (np.nan_to_num(y, copy=False)) must not
-        # change the cached case
-        result = _call(run_gnss_kf_gaps, t, y.copy(), sigma_a, sigma_gnss,
-                       hint="y is (N, 3) with NaN rows where a fix is missing; x_hat is (N, 6) "
-                            "and P_hat (N, 6, 6), one row per time t[k]")
+        result = _result(results[index])
         x_res, P_res = _pair(result, "run_gnss_kf_gaps", ("x_hat (N, 6)", "P_hat (N, 6, 6)"))
         for value, ref, what in ((x_res, x_ref, "x_hat"), (P_res, P_ref, "P_hat")):
             arr = as_array(value, what)
@@ -1026,8 +1219,8 @@ def check_gnss_kf_gaps(run_gnss_kf_gaps):
         P_hat = expect_shape(P_res, P_ref.shape, "P_hat")
         if _same_run(x_hat, P_hat, x_ref, P_ref):
             continue
-        _reject_known_run_mistakes(x_hat, P_hat, y, sigma_gnss, _gaps_mistakes(t, y, sigma_a, sigma_gnss),
-                                   f"{excerpt} with missing fixes")
+        _reject_known_run_mistakes(results, index, y, sigma_gnss, [why for _, why in _GAP_MISTAKES],
+                                   _gaps_mistake, f"{excerpt} with missing fixes")
         wrong_rows = [k for k in range(N) if not _same_run(x_hat[k], P_hat[k], x_ref[k], P_ref[k])]
         first = wrong_rows[0]
         where = (f"row {first} is a missing fix: there the posterior is the prior, predicted to "

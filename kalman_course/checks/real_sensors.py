@@ -6,14 +6,20 @@ Cases (what is real, what is simulated)
 ---------------------------------------
 - Gauss–Markov blocks: made-up stationary σ, different on every component (m and rad), time
   constants 0.5–5 s and steps 0.01–2 s, including steps longer than τ, where the first-order
-  forms are off by a factor (the first-order decay 1 − T/τ even turns negative).
+  forms are off by a factor (the first-order decay 1 − T/τ even turns negative); then, judged
+  after those, a sweep of T/τ from 1e-6 to 1e3 (three a decade, steps from 5e-8 s to 3e5 s, σ
+  from 4 mrad to 40 m: both sides of 1), where a special case for short or long steps shows.
 - Augmented matrices: the plain ESKF's F and B Q Bᵀ (:mod:`kalman_course.filters.eskf`) at
   states of the real KITTI ground truth of ``turns`` (tilted, made-up non-zero biases), steps of
-  0.01, 0.104 and 1 s, made-up σ per component.
+  0.01, 0.104 and 1 s, made-up σ per component; and the first of them again with τ from 1e6 T
+  down to 1e-3 T (T ≪ τ to T ≫ τ).
 - Relative motion, residual and Jacobian: pairs of real KITTI ground-truth poses (``turns``)
   0.1, 1 and 3 s apart (up to 1.45 rad of turning), tilted by up to ~0.5 rad so that no
   rotation is about the vertical alone; the same pairs moved by one rigid transform (a relative
-  pose must not change); measured increments are the true ones plus seeded noise (simulated).
+  pose must not change); measured increments are the true ones plus seeded noise (simulated);
+  and a turn sweep: a tilted KITTI pose and made-up poses turned from it by 1e-8 and 1e-4 rad
+  and by π − 1e-3 and π − 1e-6 rad, each about an axis and about its opposite (the Jacobian
+  takes the two nearest a half turn).
 - Drift: the real ORB-SLAM2 and S-PTAM tracks of sequence 00, anchored to the truth at one frame
   as in lecture 10 §2 (:func:`kalman_course.chapters.visual_odometry.setup`), against the real
   ground truth, every 5th of the first 1550 frames (about 160 s), segments of 50, 100, 200 and
@@ -74,7 +80,8 @@ from typing import Callable
 import numpy as np
 
 from kalman_course.checks import cases as inputs  # `cases` names the lists of cases below
-from kalman_course.checks.harness import CheckFailed, as_array, call, check, type_name
+from kalman_course.checks import hints
+from kalman_course.checks.harness import CheckFailed, as_array, call, check, known_mistake, type_name
 from kalman_course.chapters import visual_odometry as vo
 from kalman_course.chapters.real_sensors import relative_jacobian_by_differences
 from kalman_course.core import so3
@@ -109,12 +116,33 @@ GM_DRAWN = (((0.3, 0.8), (0.1, 0.4)), ((1.5, 5.0), (0.002, 0.01)), ((0.3, 0.8), 
 #: ... and the ranges of the stationary σ per component, m (position) and rad (attitude).
 SIGMA_DRAWN = ((0.1, 3.0), (0.002, 0.05))
 
+#: The sweep of the Gauss–Markov checks, judged after their main cases: ratios T/τ log-spaced from
+#: GM_SWEEP_RATIOS[0] (where a learner's series or "φ ≈ 1 − T/τ for small steps" would be
+#: accurate to 5e-13, below the tolerance) to GM_SWEEP_RATIOS[1] (where φ = exp(−1000) is 0
+#: exactly), GM_SWEEP_COUNT of them (three a decade: a cut-off "φ = 0 beyond 20 τ", off by
+#: exp(−20) = 2e-9, meets T/τ = 21.5, where φ is still 4.6e-10, above ATOL); τ cycles through GM_SWEEP_TAUS (s), so that the steps T
+#: range from 5e-8 s to 3e5 s; σ on both sides of 1 (made up: σ ≠ σ², and Q_e well above the
+#: absolute tolerance even at the shortest step, 3e-11 for σ = 4 mrad). Every correct way of
+#: writing the blocks agrees to 5e-11 relative even at T/τ = 1e-6 (1 − φ² loses digits to
+#: cancellation there), 20 times inside RTOL.
+GM_SWEEP_RATIOS, GM_SWEEP_COUNT = (1e-6, 1e3), 28
+GM_SWEEP_TAUS = (0.05, 3.0, 300.0)
+GM_SWEEP_SIGMA = np.array([0.03, 2.5, 40.0, 0.004, 0.6, 1.8])
+#: Under a run seed: each ratio moved by a drawn factor within its decade, τ drawn from
+#: GM_SWEEP_TAUS_DRAWN (s), σ drawn per component from SIGMA_SWEEP_DRAWN (spanning 1).
+GM_SWEEP_TAUS_DRAWN = (0.02, 500.0)
+SIGMA_SWEEP_DRAWN = (0.003, 50.0)
+
 #: Augmented-matrix cases: (IMU step or interval T s, τ s); one KITTI state each (IMU sample).
 AUG_STEPS = ((0.01, 0.5), (0.104, 1.0), (1.0, 3.0))
 AUG_SAMPLES = (700, 2500, 4400)
 #: Under a run seed, the ranges of T and of τ (s) of each augmented case: T always below τ
 #: and the ranges apart, so that swapping them changes F_e.
 AUG_DRAWN = (((0.005, 0.02), (0.3, 0.8)), ((0.05, 0.2), (0.6, 1.6)), ((0.5, 1.5), (2.0, 5.0)))
+#: The augmented cases' sweep: the first case's step (its F and B Q Bᵀ) again, with τ = T / ratio
+#: for these ratios T/τ (from T ≪ τ to T ≫ τ, as the Gauss–Markov sweep); under a run seed each
+#: ratio is moved by a drawn factor of up to 3 either way.
+AUG_SWEEP_RATIOS = (1e-6, 1e-2, 10.0, 1e3)
 #: ESKF noise densities of the cases (accel, gyro, accel bias, gyro bias), as chapter 08's.
 DENSITY = np.array([0.03, 1e-3, 1.67e-4, 2.91e-6])
 
@@ -128,6 +156,14 @@ MOVE_TRANSLATION = np.array([120.0, -45.0, 3.0])
 #: fixed pairs' reaches 1.45 rad; subtracting rotation vectors is wrong by O(|ΔŘ| |y_θ|)).
 POSE_GAPS_DRAWN = ((1, 2), (20, 35), (8, 14), (20, 35), (8, 14))
 POSE_TURN_DRAWN = 1.0
+#: The turn sweep of the relative-pose checks: a tilted KITTI truth pose (frame) and a second pose
+#: turned from it by each of these angles (rad), about a drawn axis and about its opposite (both
+#: signs), and moved by a drawn 0.5–3 m: increments near the identity, where every side and
+#: order of the products almost agree, and near a half turn, where rotation vectors wrap (the
+#: Log of an increment of π − 1e-6 rad may come back as a turn the other way). Under a run seed
+#: each angle's distance from 0 or π is moved by a drawn factor of up to 3 either way.
+TURN_SWEEP_FRAME = 300
+TURN_SWEEP_ANGLES = (1e-8, 1e-4, np.pi - 1e-3, np.pi - 1e-6)
 
 #: Drift cases: VO systems, frames (every ``DRIFT_STRIDE``-th of the first ``DRIFT_FRAMES``
 #: after the anchor frame), segment lengths (m) and the step between segment starts (frames).
@@ -176,25 +212,46 @@ def _evaluate(formula: Callable, case):
     return value if np.all(np.isfinite(value)) else None
 
 
+#: The hint for results that agree with the reference to single precision only, and the largest
+#: relative error where it applies (float32 keeps about 7 digits; every listed mistake is off by
+#: more than 1e-3 relative on some case, see the module notes).
+SINGLE_PRECISION = ("the results agree with the reference to only 4–7 digits, as a computation in single precision "
+                    "(float32) does; keep NumPy's default float64 throughout")
+SINGLE_PRECISION_RTOL = 1e-4
+
+
+def _single_precision(got, wanted) -> bool:
+    """Whether every result is within :data:`SINGLE_PRECISION_RTOL` of its reference (and of its shape)."""
+    return all(g is not None and w is not None and np.shape(g) == np.shape(w)
+               and bool(np.allclose(np.asarray(g, dtype=float), w, rtol=SINGLE_PRECISION_RTOL, atol=1e-9))
+               for g, w in zip(got, wanted))
+
+
 def _judge(what: str, got: list, cases, labels, reference: Callable, mistakes, hint: str,
-           atol=ATOL, rtol=RTOL) -> None:
+           atol=ATOL, rtol=RTOL, precision: bool = True) -> None:
     """Fail unless ``got[k]`` matches ``reference(*cases[k])`` on every case.
 
     ``mistakes`` is a list of (formula, why): a formula of a case's arguments giving a wrong
-    value; the first that reproduces the learner's values on every case is named. ``atol`` may
-    be a function of the case (a per-case tolerance).
+    value; the first that reproduces the learner's values on every case is named
+    (:func:`harness.known_mistake`). ``atol`` may be a function of the case (a per-case
+    tolerance). With ``precision``, results that agree to single precision only are told so
+    (off where a check's cases are built to show small approximations, as a sweep's are).
     """
     tol = atol if callable(atol) else (lambda *case: atol)
-    wrong = [k for k, case in enumerate(cases) if not _close(got[k], reference(*case), tol(*case), rtol)]
+    wanted = [reference(*case) for case in cases]
+    wrong = [k for k, case in enumerate(cases) if not _close(got[k], wanted[k], tol(*case), rtol)]
     if not wrong:
         return
     k = wrong[0]
-    for formula, why in mistakes:
-        if all(_close(got[n], _evaluate(formula, case), tol(*case), rtol) for n, case in enumerate(cases)):
-            raise CheckFailed(f"{what} is wrong ({labels[k]}). Hint: {why}")
-    err = np.abs(np.asarray(got[k], dtype=float) - reference(*cases[k])).max()
-    raise CheckFailed(f"{what} differs from the reference ({labels[k]}; max abs error {err:.3g}, "
-                      f"{len(wrong)} of {len(cases)} cases wrong). Hint: {hint}")
+    summary = f"{len(wrong)} of {len(cases)} cases wrong"
+    why = known_mistake(got, cases, mistakes, lambda g, w, n: _close(g, w, tol(*cases[n]), rtol), evaluate=_evaluate)
+    if why is not None:
+        raise CheckFailed(f"{what} is wrong ({labels[k]}; {summary}). Hint: {why}")
+    err = np.abs(np.asarray(got[k], dtype=float) - wanted[k]).max()
+    message = f"{what} differs from the reference ({labels[k]}; max abs error {err:.3g}, {summary})."
+    if precision and _single_precision(got, wanted):
+        raise CheckFailed(f"{message} Hint: {SINGLE_PRECISION}")
+    raise CheckFailed(f"{message} Hint: {hint}")
 
 
 def _pair(value, what: str, names: tuple[str, str]):
@@ -246,6 +303,42 @@ def gm_cases():
     return inputs.fixed_or_drawn(GM_CASES, _draw_gm_cases, "real_sensors.gauss_markov")
 
 
+@functools.lru_cache(maxsize=None)
+def gm_sweep():
+    """(σ (6,), T, τ) of the Gauss–Markov sweep (:data:`GM_SWEEP_RATIOS`): from T ≪ τ to T ≫ τ.
+
+    Under a run seed each ratio is moved within its decade (never beyond the sweep's ends), and τ
+    and σ are drawn (:data:`GM_SWEEP_TAUS_DRAWN`, :data:`SIGMA_SWEEP_DRAWN`).
+    """
+    ratios = np.logspace(*np.log10(GM_SWEEP_RATIOS), GM_SWEEP_COUNT)
+
+    def fixed():
+        taus = [GM_SWEEP_TAUS[k % len(GM_SWEEP_TAUS)] for k in range(len(ratios))]
+        return tuple((GM_SWEEP_SIGMA, float(r * tau), float(tau)) for r, tau in zip(ratios, taus))
+
+    def draw(g):
+        step = ratios[1] / ratios[0]
+        moved = np.clip(ratios * inputs.log_uniform(g, 1 / np.sqrt(step), np.sqrt(step), len(ratios)),
+                        *GM_SWEEP_RATIOS)
+        out = []
+        for r in moved:
+            tau = float(inputs.log_uniform(g, *GM_SWEEP_TAUS_DRAWN))
+            out.append((inputs.log_uniform(g, *SIGMA_SWEEP_DRAWN, 6), float(r * tau), tau))
+        return tuple(out)
+
+    cases = inputs.fixed_or_drawn(fixed(), draw, "real_sensors.gauss_markov_sweep")
+    for sigma, _, _ in cases:
+        sigma.setflags(write=False)
+    return cases
+
+
+#: The hint when a function is right on a check's main cases but not across its sweep.
+_SWEEP_HINT = ("your blocks are right on the check's main cases but not across its sweep of T/τ from 1e-6 to 1e3: "
+               "the exact decay and its stationary variance hold for every step, long or short (lecture 10 §1), "
+               "so a special case, a cut-off or an approximation for small or large T/τ (a series, φ = 0 beyond "
+               "some T) shows here")
+
+
 def _gm_F(sigma, T, tau):
     return _phi(T, tau) * np.eye(6)
 
@@ -283,14 +376,15 @@ def _gm_f_mistakes(cases):
 
 _GM_F_MISTAKES = [
     (lambda s, T, tau: np.exp(-tau / T) * np.eye(6),
-     "the exponent is upside down: a longer step (or a shorter memory τ) must leave LESS of the error; "
-     "the exponent is −T/τ, a ratio of seconds to seconds"),
+     "the exponent is upside down: a longer step (or a shorter memory τ) must leave LESS of the error "
+     "(lecture 10 §1)" + hints.formula("; the exponent is −T/τ, a ratio of seconds to seconds")),
     (lambda s, T, tau: np.exp(-T * tau) * np.eye(6),
-     "T·τ has units of s²: the exponent of the decay must be dimensionless, −T/τ"),
+     "T·τ has units of s²: the exponent of the decay must be dimensionless (lecture 10 §1)" + hints.formula(", −T/τ")),
     (lambda s, T, tau: np.exp(T / tau) * np.eye(6),
-     "sign: the error decays (ė = −e/τ), so the factor over the step is below 1"),
+     "sign: the error decays (ė = −e/τ), so the factor over the step is below 1 (lecture 10 §1)"),
     (lambda s, T, tau: _phi(T, tau) ** 2 * np.eye(6),
-     "φ² = exp(−2T/τ) is how the VARIANCE decays over the step; F_e carries the error itself: φ"),
+     "φ² = exp(−2T/τ) is how the VARIANCE decays over the step; F_e carries the error itself, the share of "
+     "it that survives the step (lecture 10 §1)" + hints.formula(": φ")),
     (lambda s, T, tau: np.exp(-T / tau * np.eye(6)),
      "np.exp of a matrix is element-wise: the off-diagonal zeros became exp(0) = 1, coupling all six "
      "components. Multiply the identity by the scalar decay instead"),
@@ -310,7 +404,7 @@ def _gm_q_mistakes(cases):
     first_order = (f"Q_e = 2σ²T/τ is the first-order variance (the continuous density 2σ²/τ times T), right "
                    f"only for T ≪ τ: at T = {T:g} s, τ = {tau:g} s it is {2.0 * T / tau:.3g}σ², far above the "
                    "stationary σ². Use the exact solution: the new part must keep the error's variance "
-                   "stationary, F_e diag(σ²) F_eᵀ + Q_e = diag(σ²)")
+                   f"stationary (lecture 10 §1)" + hints.formula(": F_e diag(σ²) F_eᵀ + Q_e = diag(σ²)"))
     return [(lambda s, T, tau: np.diag(2.0 * s ** 2 / tau * T), first_order)] + _GM_Q_MISTAKES
 
 
@@ -318,20 +412,23 @@ _GM_Q_MISTAKES = [
     (lambda s, T, tau: np.diag(s ** 2 * T),
      "σ²T is how a white noise of density σ integrates; here σ is the error's stationary standard "
      "deviation (m or rad), so σ²T has the wrong units (m²·s). The new part must keep the variance "
-     "stationary: F_e diag(σ²) F_eᵀ + Q_e = diag(σ²)"),
+     "stationary (lecture 10 §1)" + hints.formula(": F_e diag(σ²) F_eᵀ + Q_e = diag(σ²)")),
     (lambda s, T, tau: np.diag(s ** 2),
      "the whole stationary variance σ² is added at every step, as for white noise: most of the error "
-     "is carried over by F_e, and only what keeps the variance at σ² is new"),
+     "is carried over by F_e, and only what keeps the variance at σ² is new (lecture 10 §1)"),
     (lambda s, T, tau: np.diag(s ** 2 * (1.0 - _phi(T, tau))),
-     "σ²(1 − φ): the variance carried over is φ² σ² (F_e σ² F_eᵀ), so the new part is σ²(1 − φ²)"),
+     "σ²(1 − φ): the variance carried over by F_e is φ² σ² (F_e σ² F_eᵀ), not φ σ² (lecture 10 §1)"
+     + hints.formula(", so the new part is σ²(1 − φ²)")),
     (lambda s, T, tau: np.diag(s ** 2 * (1.0 - _phi(T, tau)) ** 2),
-     "σ²(1 − φ)² is not what keeps the variance stationary: F_e σ² F_eᵀ + Q_e = σ² gives σ²(1 − φ²)"),
+     "σ²(1 − φ)² is not what keeps the variance stationary (lecture 10 §1)"
+     + hints.formula(": F_e σ² F_eᵀ + Q_e = σ² gives σ²(1 − φ²)")),
     (lambda s, T, tau: np.diag(s * (1.0 - _phi(T, tau) ** 2)),
      "σ is a standard deviation: Q_e holds variances, σ²"),
     (lambda s, T, tau: np.diag(s * np.sqrt(1.0 - _phi(T, tau) ** 2)),
      "that is the standard deviation of the new part; Q_e is its covariance (a variance on the diagonal)"),
     (lambda s, T, tau: np.diag(s ** 2 * _phi(T, tau) ** 2),
-     "φ²σ² is the part of the variance CARRIED OVER by F_e; Q_e is what is new, σ²(1 − φ²)"),
+     "φ²σ² is the part of the variance CARRIED OVER by F_e; Q_e is what is new (lecture 10 §1)"
+     + hints.formula(", σ²(1 − φ²)")),
     (lambda s, T, tau: np.diag(np.full(6, s[0] ** 2) * (1.0 - _phi(T, tau) ** 2)),
      "one σ for all six components: sigma holds one stationary σ per component (m for position, rad "
      "for attitude)"),
@@ -344,9 +441,10 @@ _GM_Q_MISTAKES = [
 @check
 def check_gauss_markov_blocks(gauss_markov_blocks):
     """``gauss_markov_blocks(sigma, T, tau)`` returns (F_e (6, 6), Q_e (6, 6)) of one step."""
-    cases = gm_cases()
+    cases, sweep = gm_cases(), gm_sweep()
     results = [_pair(call(gauss_markov_blocks, sigma, T, tau), "gauss_markov_blocks", ("F_e", "Q_e"))
-               for sigma, T, tau in cases]
+               for sigma, T, tau in cases + sweep]
+    results, swept = results[:len(cases)], results[len(cases):]
     labels = [_gm_label(*case) for case in cases]
     F = [_array(r[0], (6, 6), f"F_e ({label})", diag_hint=True) for r, label in zip(results, labels)]
     _judge("F_e", F, cases, labels, _gm_F, _gm_f_mistakes(cases),
@@ -355,7 +453,19 @@ def check_gauss_markov_blocks(gauss_markov_blocks):
     Q = [_array(r[1], (6, 6), f"Q_e ({label})", diag_hint=True) for r, label in zip(results, labels)]
     _judge("Q_e", Q, cases, labels, _gm_Q, _gm_q_mistakes(cases),
            "Q_e is the covariance of what is new in the error after the step; it must keep the error's "
-           "variance stationary, F_e diag(σ²) F_eᵀ + Q_e = diag(σ²)")
+           "variance stationary (lecture 10 §1)" + hints.formula(": F_e diag(σ²) F_eᵀ + Q_e = diag(σ²)"))
+    _judge_sweep(swept, sweep)
+
+
+def _judge_sweep(results, sweep) -> None:
+    """Judge ``gauss_markov_blocks``' results on the sweep (after its main cases passed)."""
+    labels = [f"T/τ = {T / tau:.2g}: {_gm_label(sigma, T, tau)}" for sigma, T, tau in sweep]
+    for k, name in enumerate(("F_e", "Q_e")):
+        try:
+            got = [_array(r[k], (6, 6), f"{name} ({label})") for r, label in zip(results, labels)]
+        except CheckFailed as exc:
+            raise CheckFailed(f"{exc} Hint: {_SWEEP_HINT}") from None
+        _judge(name, got, sweep, labels, (_gm_F, _gm_Q)[k], (), _SWEEP_HINT, precision=False)
 
 
 # --------------------------------------------------------------------------------------
@@ -388,6 +498,14 @@ def augmented_cases():
         for arr in (F, BQBt, sigma):
             arr.setflags(write=False)
         cases.append((F, BQBt, sigma, T, tau))
+    F, BQBt, _, T, _ = cases[0]
+    for ratio in AUG_SWEEP_RATIOS:
+        if inputs.drawing():
+            ratio *= float(inputs.log_uniform(rng, 1 / 3, 3))
+        sigma = GM_SWEEP_SIGMA if not inputs.drawing() else _drawn_sigma(rng)
+        sigma = np.array(sigma)
+        sigma.setflags(write=False)
+        cases.append((F, BQBt, sigma, T, T / ratio))
     return tuple(cases)
 
 
@@ -465,7 +583,7 @@ _AUG_MISTAKES = [
 def check_augmented_matrices(augmented_matrices):
     """``augmented_matrices(F, BQBt, sigma, T, tau)`` returns (F_aug (21, 21), Q_aug (21, 21))."""
     cases = augmented_cases()
-    labels = [f"T = {T:g} s, τ = {tau:g} s" for _, _, _, T, tau in cases]
+    labels = [f"T = {T:g} s, τ = {tau:g} s (T/τ = {T / tau:.2g})" for _, _, _, T, tau in cases]
     results = [_pair(call(augmented_matrices, *case), "augmented_matrices", ("F_aug", "Q_aug")) for case in cases]
     F_got = [_array(r[0], (21, 21), f"F_aug ({label})") for r, label in zip(results, labels)]
     Q_got = [_array(r[1], (21, 21), f"Q_aug ({label})") for r, label in zip(results, labels)]
@@ -473,11 +591,16 @@ def check_augmented_matrices(augmented_matrices):
     Q_ok = all(_close(g, _aug_Q(*c), ATOL) for g, c in zip(Q_got, cases))
     if F_ok and Q_ok:
         return
-    for F_wrong, Q_wrong, why in _AUG_MISTAKES:
-        F_match = all(_close(g, _evaluate(F_wrong or _aug_F, c), ATOL) for g, c in zip(F_got, cases))
-        Q_match = all(_close(g, _evaluate(Q_wrong or _aug_Q, c), ATOL) for g, c in zip(Q_got, cases))
-        if F_match and Q_match:
-            raise CheckFailed(f"F_aug and Q_aug are wrong ({labels[0]}). Hint: {why}")
+    why = known_mistake(list(zip(F_got, Q_got)), cases, [((F_wrong, Q_wrong), why) for F_wrong, Q_wrong, why in _AUG_MISTAKES],
+                        lambda g, w, n: _close(g[0], w[0], ATOL) and _close(g[1], w[1], ATOL),
+                        evaluate=lambda pair, c: (_evaluate(pair[0] or _aug_F, c), _evaluate(pair[1] or _aug_Q, c)))
+    if why is not None:
+        n_wrong = sum(not (_close(f, _aug_F(*c), ATOL) and _close(q, _aug_Q(*c), ATOL))
+                      for f, q, c in zip(F_got, Q_got, cases))
+        raise CheckFailed(f"F_aug and Q_aug are wrong ({labels[0]}; {n_wrong} of {len(cases)} cases wrong). Hint: {why}")
+    if _single_precision(F_got + Q_got, [_aug_F(*c) for c in cases] + [_aug_Q(*c) for c in cases]):
+        raise CheckFailed(f"F_aug and Q_aug differ from the reference ({labels[0]}) by round-off only. "
+                          f"Hint: {SINGLE_PRECISION}")
     blocks = (("the navigation errors", slice(0, 15)), ("the observation error", slice(15, 21)))
     for name, got, ref in (("F_aug", F_got, _aug_F), ("Q_aug", Q_got, _aug_Q)):
         for g, c, label in zip(got, cases, labels):
@@ -528,6 +651,35 @@ def pose_pairs():
     return tuple(out)
 
 
+@functools.lru_cache(maxsize=None)
+def turn_sweep_pairs():
+    """(label, p0, R0, p1, R1) of the turn sweep (:data:`TURN_SWEEP_ANGLES`), each angle about an
+    axis and about its opposite: a real KITTI truth pose (tilted) and a made-up second pose."""
+    ex = load_kitti("turns")
+    rng = inputs.rng("real_sensors.turn_sweep", 14)
+    frame = TURN_SWEEP_FRAME if not inputs.drawing() else int(rng.integers(0, len(ex.truth.t)))
+    p0, R0 = ex.truth.position[frame].copy(), ex.truth.rotation[frame] @ so3.exp(rng.normal(size=3) * 0.3)
+    out = []
+    for angle in TURN_SWEEP_ANGLES:
+        if inputs.drawing():   # the distance from 0 or from π moved, never across either
+            near = min(angle, np.pi - angle)
+            moved = near * float(inputs.log_uniform(rng, 1 / 3, 3))
+            angle = moved if angle < 1.0 else np.pi - moved
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        shift = rng.normal(size=3)
+        shift *= rng.uniform(0.5, 3.0) / np.linalg.norm(shift)
+        for sign, side in ((1.0, "+"), (-1.0, "−")):
+            R1 = R0 @ so3.exp(sign * angle * axis)
+            p1 = p0 + R0 @ shift
+            case = (f"a KITTI pose and one turned by {side}{angle:.6g} rad from it (made up)", p0.copy(), R0.copy(),
+                    p1, R1)
+            for arr in case[1:]:
+                arr.setflags(write=False)
+            out.append(case)
+    return tuple(out)
+
+
 def _drawn_pairs(rng: np.random.Generator, n_frames: int):
     """Drawn (frame, gap) pairs and a rigid transform (rotation vector, translation)."""
     pairs = []
@@ -572,7 +724,7 @@ _DP_MISTAKES = [
     (lambda p0, R0, p1, R1: R1.T @ (p1 - p0),
      "the displacement is seen from pose 1's body frame; ΔT = T0⁻¹ T1 expresses it in pose 0's"),
     (lambda p0, R0, p1, R1: R0.T @ (p0 - p1),
-     "sign: Δp is where pose 1 is seen from pose 0, R0ᵀ (p1 − p0)"),
+     "sign: Δp is where pose 1 is seen from pose 0 (lecture 10 §2)" + hints.formula(", R0ᵀ (p1 − p0)")),
     (lambda p0, R0, p1, R1: R1.T @ (p0 - p1),
      "that is where pose 0 is seen from pose 1 (the inverse relative pose T1⁻¹ T0); ΔT = T0⁻¹ T1"),
     (lambda p0, R0, p1, R1: R0.T @ p1 - p0,
@@ -589,27 +741,28 @@ _DR_MISTAKES = [
     (lambda p0, R0, p1, R1: R1.T @ R0,
      "that is the inverse, pose 0 seen from pose 1 (T1⁻¹ T0); ΔT = T0⁻¹ T1"),
     (lambda p0, R0, p1, R1: R0 @ R1,
-     "the inverse of R0 is missing: ΔR = R0⁻¹ R1 and R0⁻¹ = R0ᵀ"),
+     "the inverse of R0 is missing: pose 0 is inverted (lecture 10 §2)" + hints.formula(": ΔR = R0⁻¹ R1 and R0⁻¹ = R0ᵀ")),
     (lambda p0, R0, p1, R1: R1 @ R0,
-     "order and inverse: ΔR = R0⁻¹ R1 (R0⁻¹ = R0ᵀ), pose 0 inverted on the left"),
+     "order and inverse: pose 0 is inverted, and stands on the left (lecture 10 §2)"
+     + hints.formula(": ΔR = R0⁻¹ R1 (R0⁻¹ = R0ᵀ)")),
 ]
 
 
 @check
 def check_relative_motion(relative_motion):
     """``relative_motion(p0, R0, p1, R1)`` returns (Δp (3,), ΔR (3, 3)) = T0⁻¹ T1."""
-    cases = pose_pairs()
+    cases = pose_pairs() + turn_sweep_pairs()
     labels = [c[0] for c in cases]
     args = [c[1:] for c in cases]
     results = [_pair(call(relative_motion, *a), "relative_motion", ("dp", "dR")) for a in args]
     dp = [_array(r[0], (3,), f"Δp ({label})") for r, label in zip(results, labels)]
     dR = [_array(r[1], (3, 3), f"ΔR ({label})") for r, label in zip(results, labels)]
     _judge("Δp", dp, args, labels, _ref_dp, _DP_MISTAKES,
-           "Δp is where pose 1 is, seen from pose 0's body frame; it must not change when the whole track "
-           "is moved by a rigid transform (the check does that)", atol=1e-9)
+           "Δp is where pose 1 is, seen from pose 0's body frame (lecture 10 §2); it must not change when the "
+           "whole track is moved by a rigid transform (the check does that)", atol=1e-9)
     _judge("ΔR", dR, args, labels, _ref_dR, _DR_MISTAKES,
-           "ΔR turns pose 0's body axes into pose 1's, seen from pose 0's body frame; it must not change "
-           "when the whole track is turned (the check does that)")
+           "ΔR turns pose 0's body axes into pose 1's, seen from pose 0's body frame (lecture 10 §2); it must "
+           "not change when the whole track is turned (the check does that)")
 
 
 @functools.lru_cache(maxsize=None)
@@ -625,7 +778,8 @@ def residual_cases():
     if inputs.drawing():
         scales = tuple(rng.uniform(0.02, 0.05, len(scales)))
     out = []
-    for (label, p0, R0, p1, R1), scale in zip(pose_pairs()[:len(POSE_PAIRS)], scales):
+    scales += tuple(rng.uniform(0.02, 0.05, len(turn_sweep_pairs())))
+    for (label, p0, R0, p1, R1), scale in zip(pose_pairs()[:len(POSE_PAIRS)] + turn_sweep_pairs(), scales):
         dp, dR = eskf_relative.relative_motion(p0, R0, p1, R1)
         dp_m, dR_m = dp + rng.normal(size=3) * 0.03, dR @ so3.exp(rng.normal(size=3) * scale)
         case = (p0, R0, p1, R1, dp_m, dR_m)
@@ -673,16 +827,17 @@ _RESIDUAL_MISTAKES = [
                                             _ref_residual(pc, Rc, p, R, dp_m, dR_m)[3:]],
      "sign of the position part: prediction minus measurement, Δp̌ − Δp_m"),
     (_with_theta(lambda dR, dR_m: so3.log(dR.T @ dR_m)),
-     "sign of the attitude part: prediction relative to measurement, ΔŘ ≈ ΔR_m Exp(δθ), so the Log of "
-     "ΔR_mᵀ ΔŘ, not of ΔŘᵀ ΔR_m"),
+     "sign of the attitude part: the prediction relative to the measurement, as in chapter 08 (lecture 10 §2)"
+     + hints.formula(": ΔŘ ≈ ΔR_m Exp(δθ), so the Log of ΔR_mᵀ ΔŘ, not of ΔŘᵀ ΔR_m")),
     (_with_theta(lambda dR, dR_m: so3.log(dR @ dR_m.T)),
      "the attitude error is taken on the wrong side: Log(ΔŘ ΔR_mᵀ) is expressed in the clone's frame; the "
-     "current attitude's error δθ lives in the current body frame: ΔR_mᵀ ΔŘ"),
+     "current attitude's error δθ lives in the current body frame (lecture 10 §2)" + hints.formula(": ΔR_mᵀ ΔŘ")),
     (_with_theta(lambda dR, dR_m: so3.log(dR_m @ dR.T)),
-     "side and sign: the attitude error in the current body frame is Log(ΔR_mᵀ ΔŘ)"),
+     "side and sign: the attitude error lives in the current body frame, the prediction relative to the "
+     "measurement (lecture 10 §2)" + hints.formula(": Log(ΔR_mᵀ ΔŘ)")),
     (_with_theta(lambda dR, dR_m: so3.log(dR_m @ dR)),
-     "a transpose is missing: compare the two increments as ΔR_mᵀ ΔŘ (the rotation from the measured to "
-     "the predicted one)"),
+     "a transpose is missing: compare the two increments by the rotation from the measured to the predicted "
+     "one (lecture 10 §2)" + hints.formula(", ΔR_mᵀ ΔŘ")),
     (_swapped,
      "the increment was predicted from the current pose to the clone: the clone is the EARLIER pose, so "
      "the motion since then is T_c⁻¹ T (relative_motion(clone, current)), as the VO's increment is"),
@@ -706,8 +861,10 @@ def check_relative_pose_residual(relative_pose_residual):
     args = [c[1:] for c in cases]
     got = [_array(call(relative_pose_residual, *a), (6,), f"y ({label})") for a, label in zip(args, labels)]
     _judge("y", got, args, labels, _ref_residual, _RESIDUAL_MISTAKES,
-           "y = [predicted − measured displacement (clone's body frame); the attitude error of the predicted "
-           "increment against the measured one, as a rotation vector in the current body frame]",
+           "the residual compares the predicted increment with the measured one (lecture 10 §2): the difference "
+           "of the displacements in the clone's body frame, then the attitude error of the predicted increment "
+           "against the measured one, as a rotation vector in the current body frame"
+           + hints.formula(": y = [Δp̌ − Δp_m; Log(ΔR_mᵀ ΔŘ)]"),
            atol=_residual_tolerance, rtol=0.0)
 
 
@@ -715,7 +872,8 @@ def check_relative_pose_residual(relative_pose_residual):
 def jacobian_cases():
     """(label, R_clone, Δp̌, ΔŘ, G by central differences) for the nominal pose pairs."""
     out = []
-    for label, pc, Rc, p, R in pose_pairs():
+    half_turns = [pair for pair in turn_sweep_pairs() if so3.angle(pair[2].T @ pair[4]) > 3.0]
+    for label, pc, Rc, p, R in pose_pairs() + tuple(half_turns[-2:]):
         dp, dR = eskf_relative.relative_motion(pc, Rc, p, R)
         G = relative_jacobian_by_differences(pc, Rc, p, R, FD_STEP)
         for arr in (dp, dR, G):
@@ -738,24 +896,30 @@ def _g_alternatives(Rc, dp, dR) -> dict:
         ("y_p", "δp_c"): [
             (Rc.T, "sign: the clone's position error enters the predicted displacement p̌ − p̌_c with a minus"),
             (-np.eye(3), "the displacement is seen from the clone's body frame: the clone's position error is "
-                         "rotated like the current one, −Ř_cᵀ"),
-            (-Rc, "R_c = R_nb maps body to navigation; the displacement is seen from the clone: −Ř_cᵀ"),
+                         "rotated like the current one" + hints.formula(", −Ř_cᵀ")),
+            (-Rc, "R_c = R_nb maps body to navigation; the displacement is seen from the clone"
+                  + hints.formula(": −Ř_cᵀ")),
         ],
         ("y_p", "δθ_c"): [
-            (-hat(dp), "sign of the lever arm: with Ř_c = R_c Exp(δθ_c), R_cᵀ = Exp(δθ_c) Ř_cᵀ ≈ (I + [δθ_c]×) Ř_cᵀ, "
-                       "so the true increment is Δp̌ + δθ_c × Δp̌ and y_p gains −δθ_c × Δp̌ = [Δp̌]× δθ_c"),
+            (-hat(dp), "sign of the lever arm: expand the true clone attitude to first order in δθ_c (lecture 10 "
+                       "§2, error = nominal − true)"
+                       + hints.formula(": with Ř_c = R_c Exp(δθ_c), R_cᵀ = Exp(δθ_c) Ř_cᵀ ≈ (I + [δθ_c]×) Ř_cᵀ, "
+                                       "so the true increment is Δp̌ + δθ_c × Δp̌ and y_p gains −δθ_c × Δp̌ = "
+                                       "[Δp̌]× δθ_c")),
             (np.zeros((3, 3)), "missing: an attitude error of the clone turns the frame in which the displacement "
-                               "is seen, so it moves y_p by the lever arm [Δp̌]× δθ_c"),
+                               "is seen, so it moves y_p by a lever arm (lecture 10 §2)" + hints.formula(", [Δp̌]× δθ_c")),
             (hat(Rc @ dp), "the lever arm is the displacement in the clone's BODY frame, Δp̌, not in the "
                            "navigation frame"),
         ],
         ("y_θ", "δθ_c"): [
             (-np.eye(3), "the clone's attitude error lives in the clone's body frame, the residual's attitude "
-                         "part in the current one: rotate it across the increment, −ΔŘᵀ"),
+                         "part in the current one: rotate it across the increment" + hints.formula(", −ΔŘᵀ")),
             (-dR, "transpose: the clone's attitude error is carried into the current body frame by ΔŘᵀ "
                   "(ΔŘ = Ř_cᵀ Ř maps current-body vectors to clone-body ones)"),
-            (dR.T, "sign: y_θ = Log(ΔR_mᵀ ΔŘ) with ΔŘ = Ř_cᵀ Ř decreases with the clone's attitude error: −ΔŘᵀ"),
-            (np.eye(3), "sign and frame: −ΔŘᵀ"),
+            (dR.T, "sign: y_θ decreases with the clone's attitude error (lecture 10 §2)"
+                   + hints.formula(": y_θ = Log(ΔR_mᵀ ΔŘ) with ΔŘ = Ř_cᵀ Ř, so −ΔŘᵀ")),
+            (np.eye(3), "sign and frame: the clone's attitude error enters with a minus and must be carried across "
+                        "the increment into the current body frame (lecture 10 §2)" + hints.formula(": −ΔŘᵀ")),
         ],
     }
 
@@ -795,10 +959,12 @@ def check_relative_pose_jacobian(relative_pose_jacobian):
                 if not e.any():
                     raise CheckFailed(f"{where} should be zero: the residual does not depend on {cname}")
                 if not g.any():
-                    raise CheckFailed(f"{where} is missing (all zeros); it should be {formula}")
+                    raise CheckFailed(f"{where} is missing (all zeros). Hint: the residual depends on {cname} "
+                                      "(lecture 10 §2)" + hints.formula(f"; the block is {formula}"))
                 raise CheckFailed(f"{where} differs from central differences of the residual (max abs error "
-                                  f"{np.abs(g - e).max():.3g}). Hint: it is {formula}; make the true poses from "
-                                  "the error (error = nominal − true, Ř = R Exp(δθ)) and expand to first order")
+                                  f"{np.abs(g - e).max():.3g}). Hint: make the true poses from the error "
+                                  "(error = nominal − true, Ř = R Exp(δθ)) and expand the residual to first order "
+                                  "(lecture 10 §2)" + hints.formula(f"; the block is {formula}"))
 
 
 # --------------------------------------------------------------------------------------
@@ -911,7 +1077,8 @@ _DRIFT_MISTAKES = [
     (lambda p, R, pt, Rt, i, j, L: 100.0 * _segment_motion_errors(p, R, pt, Rt, i, j)[0], None,
      "not divided by the segment's length: the translational error is per length travelled, in %"),
     (lambda p, R, pt, Rt, i, j, L: _segment_motion_errors(p, R, pt, Rt, i, j)[0], None,
-     "that is the error in metres; the translational error is per length travelled: 100 · error / L (%)"),
+     "that is the error in metres; the translational error is per length travelled, in % (lecture 10 §2)"
+     + hints.formula(": 100 · error / L")),
     (None, lambda p, R, pt, Rt, i, j, L: _segment_motion_errors(p, R, pt, Rt, i, j)[1] / L * 100.0,
      "radians: the rotational error is in DEGREES per 100 m"),
     (None, lambda p, R, pt, Rt, i, j, L: np.rad2deg(_segment_motion_errors(p, R, pt, Rt, i, j)[1] / L),
@@ -953,19 +1120,23 @@ def check_drift_segments(segment_errors):
     r_ok = all(_close(g, _drift_r(*a), ATOL, DRIFT_RTOL) for g, a in zip(r, args))
     if t_ok and r_ok:
         return
-    for t_wrong, r_wrong, why in _DRIFT_MISTAKES:
-        if (all(_close(g, _evaluate(t_wrong or _drift_t, a), ATOL, DRIFT_RTOL) for g, a in zip(t, args))
-                and all(_close(g, _evaluate(r_wrong or _drift_r, a), ATOL, DRIFT_RTOL) for g, a in zip(r, args))):
-            what = "both outputs are" if t_wrong and r_wrong else \
-                "the translational errors are" if t_wrong else "the rotational errors are"
-            raise CheckFailed(f"{what} wrong ({labels[0]}). Hint: {why}")
+    outputs = {why: (t_wrong, r_wrong) for t_wrong, r_wrong, why in _DRIFT_MISTAKES}
+    why = known_mistake(list(zip(t, r)), args, [(pair, why) for why, pair in outputs.items()],
+                        lambda g, w, n: _close(g[0], w[0], ATOL, DRIFT_RTOL) and _close(g[1], w[1], ATOL, DRIFT_RTOL),
+                        evaluate=lambda pair, a: (_evaluate(pair[0] or _drift_t, a), _evaluate(pair[1] or _drift_r, a)))
+    if why is not None:
+        t_wrong, r_wrong = outputs[why]
+        what = "both outputs are" if t_wrong and r_wrong else \
+            "the translational errors are" if t_wrong else "the rotational errors are"
+        raise CheckFailed(f"{what} wrong ({labels[0]}). Hint: {why}")
     if not t_ok:
         _judge("the translational errors (%)", t, args, labels, _drift_t, (),
-               "100 |Δp_true − Δp| / L: the difference of the displacements over the segment, each seen from "
-               "the segment's start (relative_motion), in % of the segment's length L", rtol=DRIFT_RTOL)
+               "the difference of the displacements over the segment, each seen from the segment's start "
+               "(relative_motion), in % of the segment's length L (lecture 10 §2)"
+               + hints.formula(": 100 |Δp_true − Δp| / L"), rtol=DRIFT_RTOL)
     _judge("the rotational errors (°/100 m)", r, args, labels, _drift_r, (),
            "the angle of ΔRᵀ ΔR_true (the relative rotations of the segment, estimated and true) per segment "
-           "length, in degrees per 100 m", rtol=DRIFT_RTOL)
+           "length, in degrees per 100 m (lecture 10 §2)", rtol=DRIFT_RTOL)
 
 
 # --------------------------------------------------------------------------------------
@@ -1078,5 +1249,6 @@ def check_nis_rescaled_std(rescaled_std):
                               "increment or per component")
         got.append(value.reshape(()))
     _judge("the new σ", got, args, labels, _ref_std, _NIS_MISTAKES,
-           "σ × √(median NIS / χ² median), the NIS of each increment with the block's whole S, the χ² median "
-           "of as many degrees of freedom as the block has components", atol=0.0)
+           "scale σ so that the median NIS of the block would meet the χ² median of as many degrees of freedom as "
+           "the block has components, the NIS of each increment with the block's whole S (lecture 10 §2); a NIS "
+           "scales like a variance" + hints.formula(": σ × √(median NIS / χ² median)"), atol=0.0)

@@ -109,11 +109,13 @@ def _cmd_grade(args: argparse.Namespace) -> int:
     sandbox = _open_sandbox(args, grading_a_class=any(learner != "-" for _, learner in submissions))
     if sandbox is False:
         return 2
-    from kalman_course.checks import cases
+    from kalman_course.checks import cases, hints
     from kalman_course.tooling import sealed
 
     args.seed = secrets.randbits(63) if args.seed is None else args.seed
     cases.set_run_seed(args.seed)  # before the preload computes the checks' cases
+    # one tier for the whole run: a verdict's text must not depend on how often a check ran
+    hints.set_tier(2 if args.all_hints else 1, escalate=False, more=hints.WHEN_GRADED)
     sealed.preload(_checks_of(submissions, release))  # nothing is imported once a learner's kernel runs
     fingerprint = sealed.Fingerprint()
     jobs = args.jobs or os.cpu_count() or 1
@@ -211,7 +213,8 @@ def _report(results, args, run=None, key=None) -> int:
     if run is None:
         roster = getattr(args, "roster", None) or [(r.learner, r.path) for r in results]
         run = gradebook.run_record(roster, sandbox=getattr(args, "sandbox_text", None) or "none", seed=args.seed,
-                                   shard=args.shard, interrupted=getattr(args, "interrupted", False))
+                                   shard=args.shard, interrupted=getattr(args, "interrupted", False),
+                                   hint_tier=2 if args.all_hints else 1)
         key = args.gradebook_key if hasattr(args, "gradebook_key") else gradebook.load_key(args.key_file)
     for line in gradebook.write_gradebooks(results, run, key, csv_path=args.csv, json_path=args.json,
                                            feedback_dir=args.feedback):
@@ -372,7 +375,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--jobs", type=_positive(int), default=None,
                    help="submissions graded in parallel, each in its own kernel (default: number of cores)")
     p.add_argument("--all-hints", action="store_true",
-                   help="list every failed check with its hint under the table (default: the first per notebook)")
+                   help="list every failed check with its whole hint, formulas included, under the table "
+                        "(default: the first per notebook, with the concept and lecture section but not the "
+                        "formula); recorded in the gradebook as hint tier 2")
     p.add_argument("--seed", type=_seed, default=None, metavar="N",
                    help="the run seed the checks draw their inputs from, recorded in the gradebook (default: "
                         "a fresh one; pass a gradebook's seed to grade with the same inputs, and the same "

@@ -343,7 +343,7 @@ def csv_text(results: list[NotebookResult]) -> str:
 
 
 def run_record(roster, *, sandbox: str, seed: int, shard: tuple[int, int] | None = None,
-               interrupted: bool = False) -> dict:
+               interrupted: bool = False, hint_tier: int = 1) -> dict:
     """What a JSON gradebook says about the run that wrote it.
 
     Parameters
@@ -361,10 +361,13 @@ def run_record(roster, *, sandbox: str, seed: int, shard: tuple[int, int] | None
         (K, N) when the run graded shard K of N.
     interrupted : bool
         Whether the run was stopped before every notebook was graded.
+    hint_tier : int
+        How much the hints say (:data:`kalman_course.checks.hints.TIERS`): 1, the concept and
+        the lecture section; 2, the formulas too (``--all-hints``).
     """
     return {"sandbox": str(sandbox), "seed": int(seed), "shard": f"{shard[0]}/{shard[1]}" if shard else None,
             "class_size": len(roster), "class": [[str(learner), str(path)] for learner, path in roster],
-            "interrupted": bool(interrupted)}
+            "interrupted": bool(interrupted), "hint_tier": int(hint_tier)}
 
 
 def _record(r: NotebookResult) -> dict:
@@ -576,7 +579,10 @@ def _run_problem(run) -> str:
     types = {"sandbox": str, "seed": int, "class_size": int, "class": list, "interrupted": bool}
     if not isinstance(run, dict):
         return "run is not an object"
-    problem = _fields_problem(run, types, [*types, "shard"], [], "run")
+    # hint_tier is newer than the format: a gradebook without it was graded at tier 1
+    problem = _fields_problem(run, {**types, "hint_tier": int}, [*types, "shard"], ["hint_tier"], "run")
+    if not problem and run.get("hint_tier", 1) not in (1, 2):
+        problem = f"run.hint_tier is {run['hint_tier']!r}, not 1 or 2"
     if problem:
         return problem
     if run["shard"] is not None and _shard_numbers(run["shard"]) is None:

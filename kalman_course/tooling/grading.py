@@ -354,7 +354,36 @@ def _judge(session, check_name: str, names: list[str]) -> tuple[bool, str]:
     return True, ""
 
 
-def run_graded(nb, *, timeout: float = 120.0, compare: bool = False, session=None):
+#: What a check says when the learner's function uses a name never defined (harness._undefined_name).
+_USES_UNDEFINED = re.compile(r"(\w+) uses (\w+), which is not defined\. Hint: .*$", re.S)
+
+
+def _undefined(session, names: list[str], cells: list, errors: list, labels: dict) -> str:
+    """The message for a grader cell whose function is not defined (its cell raised, or no
+    cell defines it), or "" when every name is defined: told as such, naming the cell, not
+    as whatever the check would make of a NameError."""
+    for name in names:
+        if session.describe(name).get("defined"):
+            continue
+        raised = dict(errors)
+        # a cell that does not parse binds nothing; its def line still says what it was for
+        written = re.compile(rf"^(def|class)\s+{re.escape(name)}\b|^{re.escape(name)}\s*=", re.M)
+        defining = [c for c in cells if name in _top_level_bindings(c.source) or written.search(c.source)]
+        label = (lambda c: labels.get(c.get("id"), f"cell {c.get('id')}"))
+        failed = [c for c in defining if c.get("id") in raised]
+        if failed:
+            return (f"{name} is not defined: its cell, {label(failed[-1])}, raised "
+                    f"{raised[failed[-1].get('id')]}. Hint: fix that error and run the cell again; the "
+                    "check needs the function the cell defines")
+        if defining:
+            return (f"{name} is not defined when this grader cell runs, although {label(defining[-1])} "
+                    "defines it. Hint: was it deleted (del) or the cell's definition skipped?")
+        return (f"{name} is not defined: no cell of the notebook defines it. Hint: the exercise's cell "
+                "that defines it was deleted, or the function renamed; restore it from the released exercise")
+    return ""
+
+
+def run_graded(nb, *, timeout: float = 120.0, compare: bool = False, session=None, labels: dict | None = None):
     """Run a restored notebook in a fresh kernel; judge each grader cell in this process.
 
     Learner cells run in the kernel in order, up to the last grader cell (what follows it
@@ -362,7 +391,8 @@ def run_graded(nb, *, timeout: float = 120.0, compare: bool = False, session=Non
     calling the learner's functions in the kernel (only plain data crosses); the grader
     cell itself does not run, unless ``compare`` is set, when it also runs in the kernel
     and its own verdict (the success line printed, no error) is recorded next to this one.
-    ``session``: a kernel already started for this notebook (:func:`_fresh_session`).
+    ``session``: a kernel already started for this notebook (:func:`_fresh_session`);
+    ``labels``: run id -> how a message names that cell (default ``cell <id>``).
 
     Returns
     -------
@@ -395,7 +425,15 @@ def run_graded(nb, *, timeout: float = 120.0, compare: bool = False, session=Non
                     errors.append((cell.get("id"), outcome.error))
                 continue
             importing.join()
-            passed, message = _judge(session, *grader_call(cell.source))
+            check_name, names = grader_call(cell.source)
+            undefined = _undefined(session, names, code, errors, labels or {})
+            passed, message = (False, f"CheckFailed: {check_name}: {undefined}") if undefined else \
+                _judge(session, check_name, names)
+            uses = _USES_UNDEFINED.search(message)
+            if uses and (why := _undefined(session, [uses[2]], code, errors, labels or {})):
+                # which cell to fix: "f uses g, which is not defined: its cell, cell 4, raised ..."
+                message = (f"CheckFailed: {check_name}: {uses[1]} uses {uses[2]}, which is not defined"
+                           + why.removeprefix(f"{uses[2]} is not defined"))
             verdict = _GraderVerdict(passed, message)
             if compare:
                 outcome = session.run_cell(cell.source, capture=True)
@@ -616,12 +654,12 @@ def grade_submission(submission, release: dict, result: NotebookResult, *, timeo
         result.flags = review_flags(submission, ref) + copy_flags(submission, ref, cells)
     except Exception as exc:  # the review is advice: it must never cost a grade
         result.flags = [f"the code review failed ({type(exc).__name__}); read the notebook by hand"]
+    labels = cells.label_of_run_id()
     result.status, verdicts, errors, result.detail = run_graded(nb, timeout=timeout, compare=compare,
-                                                                session=session)
+                                                                session=session, labels=labels)
     if result.status == GRADED and (result.tampered or result.readded):
         result.status = TAMPERED_RESTORED
     graders = {cell["id"] for cell in ref.cells if grader_info(cell)}
-    labels = cells.label_of_run_id()
     result.learner_errors = [f"{labels.get(cid, f'cell {cid}')}: {error}" for cid, error in errors
                              if cid not in graders]
     calls = getattr(session, "reference_calls", None)

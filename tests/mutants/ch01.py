@@ -166,6 +166,26 @@ MUTANTS = [
          "        out[:] = belief\n"
          "        beliefs.append(out)",
          keyword="in place", mistake="one buffer appended at every step and overwritten"),
+    # --- behaviour: arguments changed in place, single precision (issue 25) -----------------
+    Edit("histogram_update", "unnormalised = likelihood * belief",
+         "belief *= likelihood\n    unnormalised = belief",
+         keyword="in place", mistake="the prior multiplied by the likelihood in place"),
+    Edit("histogram_update", _UPD,
+         "unnormalised /= unnormalised.sum()\n    belief[:] = unnormalised\n    posterior = belief",
+         keyword="in place", mistake="the posterior written into the caller's prior"),
+    Edit("histogram_predict", _PRED,
+         "belief[:] = transition @ belief\n    return belief",
+         keyword="in place", mistake="the prediction written into the caller's belief"),
+    Edit("door_likelihood", _LIK,
+         "return np.where(world == z, p_correct, 1.0 - p_correct).astype(np.float32)",
+         keyword="single precision", mistake="the likelihood in float32"),
+    Edit("histogram_predict", _PRED, "return (transition @ belief).astype(np.float32)",
+         keyword="single precision", mistake="the predicted belief in float32"),
+    # a recursion whose histogram_update normalises the caller's prior in place: named by the
+    # update's own check (the run itself is right)
+    Edit("histogram_filter", "unnormalised = likelihood * belief", "belief *= likelihood\n    unnormalised = belief",
+         cell="update", keyword="fix histogram_update first",
+         mistake="histogram_update multiplies the prior in place"),
     Edit("histogram_filter", "return np.array(beliefs)", "return belief",
          keyword="every step", mistake="only the last posterior returned"),
     Edit("histogram_filter", "for k, z in enumerate(measurements):",

@@ -24,6 +24,17 @@ _FUSE = ("gain = Sigma_a @ np.linalg.inv(Sigma_a + Sigma_b)    # how far to move
          "    cov = Sigma_a - gain @ Sigma_a")
 
 MUTANTS = [
+    # --- behaviour: arguments changed in place, single precision (issue 25) -----------------
+    Edit("conditional_covariance", _COV,
+         "cov = Sigma_xx\n    cov -= Sigma_xy @ np.linalg.solve(Sigma_yy, Sigma_xy.T)",
+         keyword="in place", mistake="the Schur complement subtracted into the caller's Σ_xx"),
+    Edit("conditional_mean", _MEAN,
+         "y -= mu_y\n    mean = mu_x + Sigma_xy @ np.linalg.solve(Sigma_yy, y)",
+         keyword="in place", mistake="the mean of y subtracted into the caller's y"),
+    Edit("linear_map_moments", _SYY, "R += G @ Sigma_xx @ G.T\n    Sigma_yy = R",
+         keyword="in place", mistake="the mapped covariance added into the caller's R"),
+    Edit("linear_map_moments", _MUY, "mu_y = (G @ mu_x).astype(np.float32)",
+         keyword="single precision", mistake="μ_y in float32"),
     # --- conditional_mean ---------------------------------------------------------------
     Edit("conditional_mean", _MEAN, "mean = mu_x + Sigma_xy @ (y - mu_y)",
          keyword="inverse of Σ_yy", mistake="Σ_yy⁻¹ left out"),

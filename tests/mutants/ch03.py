@@ -57,9 +57,9 @@ MUTANTS = [
     Edit("cv_process_noise", NOISE_JACOBIAN, "B = np.vstack([T * I, 0.5 * T**2 * I])",
          keyword="swapped", mistake="the blocks of B swapped"),
     Edit("cv_process_noise", NOISE_JACOBIAN, "B = np.vstack([T**2 * I, T * I])",
-         keyword="T²/2", mistake="½ missing in the position block of B"),
+         keyword="position block of B", mistake="½ missing in the position block of B"),
     Edit("cv_process_noise", NOISE_JACOBIAN, "B = np.vstack([0.5 * T * I, T * I])",
-         keyword="T²/2", mistake="T instead of T² in the position block of B"),
+         keyword="position block of B", mistake="T instead of T² in the position block of B"),
     Edit("cv_process_noise", NOISE_JACOBIAN, "B = np.vstack([0.5 * T**2 * I, I])",
          keyword="block of B", mistake="T missing in the velocity block of B"),
     Edit("cv_process_noise", NOISE_JACOBIAN, "B = np.vstack([0.5 * I, I])",
@@ -79,6 +79,19 @@ MUTANTS = [
     Edit("cv_process_noise", "return F, Q", "return Q, F",
          keyword="order (F, Q)", mistake="(Q, F) returned"),
 
+    # very short and very long steps (the sweep after the three cases)
+    Edit("cv_process_noise", Q,
+         "Q = B @ (sigma_a**2 * I) @ B.T if T >= 1e-3 else np.zeros((2 * dim, 2 * dim))",
+         keyword="very short and very long", mistake="no process noise below a cut-off of 1 ms"),
+    Edit("cv_process_noise", Q,
+         "Q = B @ (sigma_a**2 * I) @ B.T\n    if T < 1e-2:  # short step: the velocity block dominates\n"
+         "        Q = sigma_a**2 * np.block([[np.zeros((dim, dim)), np.zeros((dim, dim))], "
+         "[np.zeros((dim, dim)), T**2 * I]])",
+         keyword="very short and very long", mistake="only the velocity block kept for short steps"),
+    Edit("cv_process_noise", NOISE_JACOBIAN,
+         "T_noise = min(T, 10.0)  # longer steps: the acceleration is not held\n"
+         "    B = np.vstack([0.5 * T_noise**2 * I, T_noise * I])",
+         keyword="very short and very long", mistake="the step capped at 10 s in B"),
     # --- kf_predict ------------------------------------------------------------------------
     Edit("kf_predict", PRED_P, "P_check = F @ (P_hat + Q) @ F.T",
          keyword="propagated through F", mistake="Q added before the propagation, so propagated "
@@ -281,6 +294,28 @@ MUTANTS = [
     Edit("gnss_kf_run", JOSEPH, "P_hat = I_KG @ P_check @ I_KG.T + K @ K.T", cell="update",
          keyword="fix kf_update first", mistake="kf_update's Joseph form with K Kᵀ"),
 
+    # --- behaviour: arguments changed in place, single precision (issue 25) -----------------
+    Edit("kf_predict", PRED_P, "P_hat[...] = F @ P_hat @ F.T + Q\n    P_check = P_hat",
+         keyword="in place", mistake="the prior written into the caller's P̂"),
+    Edit("kf_predict", PRED_P, "P_hat[:] = F @ P_hat @ F.T\n    P_hat += Q\n    P_check = P_hat",
+         keyword="in place", mistake="P̂ propagated into itself, then Q added with +="),
+    Edit("kf_update", INNOV, "y -= G @ x_check\n    innovation = y",
+         keyword="in place", mistake="the predicted measurement subtracted into the caller's y"),
+    Edit("kf_update", XHAT, "x_check += K @ innovation\n    x_hat = x_check",
+         keyword="in place", mistake="the correction added into the caller's x̌ (x_check += ...)"),
+    Edit("cv_process_noise", Q, "Q = (B @ (sigma_a**2 * I) @ B.T).astype(np.float32)",
+         keyword="single precision", mistake="Q in float32"),
+    Edit("kf_gain", K, "K = (P_check @ G.T @ np.linalg.inv(S)).astype(np.float32)",
+         keyword="single precision", mistake="the gain in float32"),
+    # a correct run whose kf_predict works in place: the run's rows change under it; the hint
+    # must name kf_predict, not P₀ or row 0
+    Edit("gnss_kf_run", PRED_P, "P_hat[...] = F @ P_hat @ F.T + Q\n    P_check = P_hat", cell="predict",
+         keyword="fix kf_predict first", mistake="kf_predict writes the prior into the caller's P̂"),
+    Edit("gnss_kf_run", PRED_P, "P_hat[:] = F @ P_hat @ F.T\n    P_hat += Q\n    P_check = P_hat", cell="predict",
+         keyword="fix kf_predict first", mistake="kf_predict propagates P̂ into itself and adds Q with +="),
+    Edit("gnss_kf_gaps", PRED_P, "P_hat[...] = F @ P_hat @ F.T + Q\n    P_check = P_hat", cell="predict",
+         keyword="fix kf_predict first", mistake="kf_predict writes the prior into the caller's P̂"),
+
     # --- gnss_kf_gaps (the challenge): run_gnss_kf_gaps with NaN rows for missing fixes ------
     Edit("gnss_kf_gaps", GAP_STEP,
          "if np.all(np.isnan(y[k])):\n            xs.append(x)\n            Ps.append(P)\n"
@@ -436,6 +471,10 @@ EQUIVALENTS = [
 ]
 
 EQUIVALENT_MUTANTS = [
+    Equivalent("gnss_kf_run", XHAT, "x_check += K @ innovation\n    x_hat = x_check", cell="update",
+               reason="the run hands kf_update the prior that kf_predict has just returned, a new "
+                      "array that nothing else holds: changing it in place changes no row of the "
+                      "run (kf_update's own check names the in-place edit)"),
     Equivalent("kf_update", RET_UPDATE, "return x_hat, P_hat",
                reason="the Joseph form is symmetric to round-off (~1e-16 relative) already; "
                       "the symmetrisation changes nothing the check can see"),

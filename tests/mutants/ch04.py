@@ -97,6 +97,25 @@ MUTANTS = [
          mistake="branch on omega != 0 (the closed form at ω = 1e-12)"),
     Edit("ctrv_step", SWITCH, "    if abs(omega) > 1e-13:", keyword="cancellation",
          mistake="switch to the limit only at |ω| < 1e-13"),
+    # cut-offs on |ω| alone: the closed form kept down to a tiny rate, the series below it. The
+    # closed form loses ~3e-16 / |ω T| of v T, so each shows where |ω T| is tiny: at the sweep's
+    # 1.05 · 10^k rad/s with T = 1e-5 s (and, for 1e-12, at every step)
+    Edit("ctrv_step", SWITCH, "    if abs(omega) > 1e-12:", keyword="cancellation",
+         mistake="closed form kept down to |ω| > 1e-12 (4.7e-5 m at ω = 1e-11, T = 0.1 s)"),
+    Edit("ctrv_step", SWITCH, "    if abs(omega) > 1e-9:", keyword="cancellation",
+         mistake="closed form kept down to |ω| > 1e-9"),
+    Edit("ctrv_step", SWITCH, "    if abs(omega) > 1e-6:", keyword="a cut-off on |ω| alone",
+         mistake="closed form kept down to |ω| > 1e-6 (exact at 0.1 s, 1e-5 of v T lost at T = 1e-5 s)"),
+    # the exercise's former limit: the straight line below |ω| = 1e-6 and the closed form above it,
+    # whatever T; above 1e-6 it is the cut-off above, and fails where it does
+    Edit("ctrv_step", SWITCH,
+         "    if abs(omega) <= 1e-6:  # the former solution: the straight line below |ω| = 1e-6\n"
+         "        px_new, py_new = px + v * T * np.cos(psi), py + v * T * np.sin(psi)\n"
+         "    elif True:", keyword="a cut-off on |ω| alone",
+         mistake="the exercise's former first-order limit: straight line below |ω| = 1e-6, closed form above "
+                 "(1e-5 of v T lost at 1.05e-6 rad/s and T = 1e-5 s)"),
+    Edit("ctrv_step", SWITCH, "    if omega * T > OMEGA_T_SWITCH:", keyword="right turn",
+         mistake="the switch without abs(): every right turn takes the series (0.4 mm at 2 s)"),
     Edit("ctrv_step", "K = np.arange(8)", "K = np.arange(1)", keyword="straight line",
          mistake="only the straight line below the lecture's switch |ω T| < 0.02"),
     Edit("ctrv_step", SWITCH,
@@ -135,7 +154,7 @@ MUTANTS = [
     Edit("ctrv_jacobian", "sp.series(e, omega, 0, len(K))", "sp.series(e, omega, 0, 2)", keyword="series",
          mistake="Jacobian series cut after its first-order term"),
     Edit("ctrv_jacobian", "v, psi + omega * T, omega])", "v, psi + omega, omega])",
-         keyword="∂ψ/∂ω = T", mistake="heading ψ + ω in the SymPy model (∂ψ/∂ω = 1)"),
+         keyword="∂ψ/∂ω is wrong", mistake="heading ψ + ω in the SymPy model (∂ψ/∂ω = 1)"),
     # ---- ctrv_jacobian: the numeric function
     Edit("ctrv_jacobian", JAC_RETURN, "    return np.array(F_numeric(px_, py_, v_, psi_, om_, T), dtype=float).T",
          keyword="transposed", mistake="Jacobian transposed"),
@@ -159,6 +178,18 @@ MUTANTS = [
     Edit("ctrv_jacobian", JAC_SELECT,
          "    F_numeric = F_turn_numeric if abs(om_) > 1e-6 else F_series_numeric", keyword="cancellation",
          mistake="the former solution's switch |ω| > 1e-6 (series below): 1/ω² terms lose 8e-5 at T = 0.1 s"),
+    Edit("ctrv_jacobian", JAC_SELECT,
+         "    F_numeric = F_turn_numeric if om_ * T > OMEGA_T_SWITCH else F_series_numeric", keyword="right turn",
+         mistake="the Jacobian's switch without abs(): the series' Jacobian for every right turn"),
+    # finite differences with a coarse step: told as such, not "compare with finite differences"
+    Edit("ctrv_jacobian", JAC_TAIL, _finite_difference("1e-2", central=False), keyword="too coarse",
+         mistake="forward difference of ctrv_step with h = 1e-2"),
+    Edit("ctrv_jacobian", JAC_TAIL, _finite_difference("1e-3", central=False), keyword="too coarse",
+         mistake="forward difference of ctrv_step with h = 1e-3"),
+    Edit("ctrv_jacobian", JAC_TAIL, _finite_difference("1e-1", central=True), keyword="too coarse",
+         mistake="central difference of ctrv_step with h = 1e-1"),
+    Edit("ctrv_jacobian", JAC_TAIL, _finite_difference("5e-3", central=False), keyword="too coarse",
+         mistake="forward difference with h = 5e-3, a step the check does not try (the close-but-wrong hint)"),
 
     # ---- ctrv_process_noise (the challenge): B (5, 2) and Q = B diag(σ_a², σ_ψ̈²) Bᵀ
     Edit("ctrv_process_noise", f"{NOISE_B}\n    {NOISE_Q}",
@@ -186,7 +217,7 @@ MUTANTS = [
          keyword="T and T²/2 are swapped", mistake="T and T²/2 swapped in both columns"),
     Edit("ctrv_process_noise", NOISE_B_POS,
          "B = np.array([[T**2 * np.cos(psi), 0.0],\n                  [T**2 * np.sin(psi), 0.0],",
-         keyword="not T²", mistake="½ missing in the position rows (T² for T²/2)"),
+         keyword="factor ½", mistake="½ missing in the position rows (T² for T²/2)"),
     Edit("ctrv_process_noise", NOISE_Q, "Q = B @ np.diag([sigma_a, sigma_yaw]) @ B.T",
          keyword="standard deviations", mistake="σ not squared"),
     Edit("ctrv_process_noise", NOISE_Q, "Q = B @ np.diag([sigma_yaw**2, sigma_a**2]) @ B.T",
@@ -205,16 +236,14 @@ EQUIVALENTS = [
          "                     v, psi + omega * T, omega])",
          mistake="chord form with np.sinc, no branch"),
     Edit("ctrv_step", SWITCH,
-         "    if abs(omega) <= 1e-6:  # the former solution: the straight line below |ω| = 1e-6\n"
-         "        px_new, py_new = px + v * T * np.cos(psi), py + v * T * np.sin(psi)\n"
-         "    elif True:",
-         mistake="the exercise's former first-order limit: straight line below |ω| = 1e-6 (errs ≤ 5e-7 v T)"),
-    Edit("ctrv_step", SWITCH,
          "    if abs(omega * T) < 1e-8:  # first-order limit where the closed form would lose digits\n"
          "        px_new, py_new = px + v * T * np.cos(psi), py + v * T * np.sin(psi)\n"
          "    elif True:",
          mistake="straight line below |ω T| = 1e-8, closed form above"),
     Edit("ctrv_step", "K = np.arange(8)", "K = np.arange(4)", mistake="series with 4 terms (errs ≤ 1.3e-9 v T)"),
+    Edit("ctrv_step", SWITCH, "    if abs(omega * T) > 1e-7:",
+         mistake="closed form down to |ω T| = 1e-7, where it loses ≤ 3e-9 of v T (series below)"),
+    Edit("ctrv_step", "K = np.arange(8)", "K = np.arange(12)", mistake="series with 12 terms"),
     Edit("ctrv_step", SWITCH, "    if abs(omega) > OMEGA_T_SWITCH:", mistake="switch on |ω| instead of |ω T|"),
     Edit("ctrv_step", "c = v * T * (omega * T) ** K / np.cumprod(K + 1)\n"
          "        px_new = px + c @ np.cos(psi + K * np.pi / 2)\n"
@@ -237,6 +266,8 @@ EQUIVALENTS = [
          mistake="forward difference, h = 1e-5 (errs ≤ 5e-6)"),
     Edit("ctrv_jacobian", JAC_TAIL, _finite_difference("1e-5", central=True),
          mistake="central difference, h = 1e-5"),
+    Edit("ctrv_jacobian", JAC_TAIL, _finite_difference("1e-6", central=True),
+         mistake="central difference, h = 1e-6"),
     Edit("ctrv_jacobian", JAC_TAIL, _first_order_below("abs(om_ * T) > 1e-5"),
          mistake="the lecture's first-order (straight-line) Jacobian below |ω T| = 1e-5, where it errs ≤ 7e-6"),
     Edit("ctrv_jacobian", JAC_RETURN, "    return np.asarray(F_numeric(px_, py_, v_, psi_, om_, T)).tolist()",

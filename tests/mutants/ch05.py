@@ -32,8 +32,15 @@ MUTANTS = [
          mistake="atan2 arguments swapped"),
     Edit("radar_h", _PHI, "phi = np.degrees(np.arctan2(py, px))", keyword="radians",
          mistake="bearing in degrees"),
-    Edit("radar_h", _PHI, "phi = np.arctan2(py, px) % (2 * np.pi)", keyword="[0, 2π)",
-         mistake="bearing in [0, 2π) instead of (−π, π]"),
+    Edit("radar_h", "return np.array([rho, phi, rho_dot])", "return np.array([rho, phi, rho_dot], dtype=np.float32)",
+         keyword="single precision", mistake="h returned in float32"),
+    Edit("radar_h", "rho = np.hypot(px, py)", "px, py, v, psi = (np.float32(c) for c in (px, py, v, psi))\n"
+         "    rho = np.hypot(px, py)", keyword="single precision", mistake="h computed in float32 throughout"),
+    Edit("radar_h", "return np.array([rho, phi, rho_dot])",
+         "return np.array([rho, phi, rho_dot], dtype=np.float32).astype(float)", keyword="single precision",
+         mistake="h rounded to float32 and handed back as float64 (the dtype does not show it)"),
+    Edit("radar_h", _RATE, "rho_dot = (px * v * np.cos(psi) + py * v * np.sin(psi)) / max(rho, 0.01)",
+         keyword="ρ̇ is wrong", mistake="the range rate guarded by max(ρ, 0.01), wrong next to the radar"),
     Edit("radar_h", "rho = np.hypot(px, py)", "rho = px**2 + py**2", keyword="square root",
          mistake="range without the square root"),
     Edit("radar_h", _RATE, "rho_dot = v", keyword="not the speed",
@@ -159,12 +166,21 @@ MUTANTS = [
          keyword="K R Kᵀ", mistake="Joseph form without K R Kᵀ"),
     Edit("ekf_update", _P, "P_hat = (np.eye(len(x_check)) - K @ G(x_hat)) @ P_check", keyword="linearisation point",
          mistake="G re-evaluated at x̂ for the covariance"),
+    # the caller's arrays changed in place (the values are right: the harness names the side effect)
+    Edit("ekf_update", _X, "x_check += K @ innovation\n    x_hat = x_check", keyword="in place",
+         mistake="x̌ corrected in place (x_check += K @ e)"),
+    Edit("ekf_update", _P, "P_check -= K @ G_k @ P_check\n    P_hat = P_check", keyword="in place",
+         mistake="P̂ written into the caller's P̌"),
+    Edit("radar_residual", _DIFF, "e = y\n    e -= np.asarray(y_pred, dtype=float)", keyword="in place",
+         mistake="the residual subtracted into the caller's measurement"),
 ]
 
 EQUIVALENTS = [
     # radar_h
     Edit("radar_h", _PHI, "import math\n    phi = math.atan2(py, px)", mistake="math.atan2"),
     Edit("radar_h", _PHI, "phi = np.angle(px + 1j * py)", mistake="bearing as the angle of a complex number"),
+    # the bearing is a point on the circle and every use of h wraps the residual (checks/ekf.py)
+    Edit("radar_h", _PHI, "phi = np.arctan2(py, px) % (2 * np.pi)", mistake="bearing in [0, 2π) instead of (−π, π]"),
     Edit("radar_h", _RATE, "rho_dot = v * np.cos(psi - phi)", mistake="ρ̇ = v cos(ψ − φ)"),
     Edit("radar_h", "rho = np.hypot(px, py)", "rho = np.sqrt(px**2 + py**2)", mistake="√(p_x² + p_y²)"),
     Edit("radar_h", "return np.array([rho, phi, rho_dot])", "return [rho, phi, rho_dot]", mistake="a list"),

@@ -54,7 +54,11 @@ MUTANTS = [
     Edit("iekf_mean_step", _CORR, "correction = r - G_op @ x_check", keyword="not G x̌",
          mistake="− G x̌ instead of − G (x̌ − x_op)"),
     Edit("iekf_mean_step", _GAIN, "K = P_check @ G_op.T @ np.linalg.inv(R)",
-         keyword="x_{i+1} = x̌ + K_i", mistake="R⁻¹ instead of S⁻¹ in the gain"),
+         keyword="R⁻¹ instead of S⁻¹", mistake="R⁻¹ instead of S⁻¹ in the gain"),
+    Edit("iekf_mean_step", _NEXT, "x_op[:] = x_check + K @ correction\n    x_next = x_op", keyword="in place",
+         mistake="the new iterate written into the caller's x_op"),
+    Edit("iekf_mean_step", _NEXT, "x_op += K @ correction + (x_check - x_op)\n    x_next = x_op", keyword="in place",
+         mistake="x_op moved to the new iterate in place"),
     # --- iekf_update -----------------------------------------------------------------------
     Edit("iekf_update", _STOP, "if np.max(np.abs(x_op - x_check)) <= tol:", keyword="previous one",
          mistake="step measured from the prior (the stub)"),
@@ -96,6 +100,9 @@ MUTANTS = [
          mistake="mean step from x_op, loop correct", cell="step"),
     Edit("iekf_update", _MEAN_STEP, _EKF_STEP, keyword="fix iekf_mean_step first",
          mistake="the mean step's placeholder left in, loop correct", cell="step"),
+    Edit("iekf_update", _NEXT, "x_op[:] = x_check + K @ correction\n    x_next = x_op", keyword="fix iekf_mean_step first",
+         mistake="the mean step writes into x_op, which the loop keeps as x_lin (every step then looks like 0)",
+         cell="step"),
     # --- iekf_converged (the challenge) ----------------------------------------------------
     Edit("iekf_converged", _DISTANCE, "distance = np.max(np.abs(step))", keyword="own units",
          mistake="the largest absolute change, units mixed (the stub)"),

@@ -256,6 +256,59 @@ MUTANTS = [
     Edit("mechanisation_run", _PNEXT, "p_next = p + v0 * dt", cell="pos",
          keyword="fix position_step first", mistake="position_step with Euler's rule"),
 
+    # --- the sweep of the singular regimes (issue 25): small-angle switches and series ------
+    Edit("attitude_step", _ATT, _RODRIGUES_GUARDED.replace("theta < 1e-8", "theta < 1e-9").replace(
+        "R_next = R @ (np.eye(3) + K + 0.5 * K @ K)", "R_next = R"), keyword="small rotations",
+         mistake="below 1e-9 rad the step returns R unchanged (error |φ| up to 1e-9, 10× the tolerance)"),
+    Edit("attitude_step", _ATT, _RODRIGUES_GUARDED.replace("theta < 1e-8", "np.linalg.norm(w_mean) < 1e-9").replace(
+        "R_next = R @ (np.eye(3) + K + 0.5 * K @ K)", "R_next = R.copy()"), keyword="small rotations",
+         mistake="the switch on the rate, not the angle: below 1e-9 rad/s R unchanged (0.5 s steps turn 5e-10 rad)"),
+    Edit("attitude_step", _ATT, _RODRIGUES_GUARDED.replace("theta < 1e-8", "theta < 1e-3").replace(
+        "R_next = R @ (np.eye(3) + K + 0.5 * K @ K)", "R_next = R @ (np.eye(3) + K)"), keyword="first-order",
+         mistake="the first-order I + [φ]× below 1e-3 rad (error ½|φ|² up to 5e-7; not a rotation)"),
+    Edit("attitude_step", _ATT, _RODRIGUES_GUARDED.replace("theta < 1e-8", "theta < 3e-3"),
+         keyword="truncated series", mistake="the second-order series kept up to 3e-3 rad (error |φ|³/6 up to 4.5e-9)"),
+    Edit("attitude_step", _ATT, _RODRIGUES_GUARDED.replace("theta < 1e-8", "np.max(phi) < 1e-8"),
+         keyword="truncated series", mistake="the switch on the largest component, not the norm (every rotation "
+                                             "about an all-negative axis takes the series)"),
+    Edit("attitude_step", _ATT, "theta = np.linalg.norm(w_mean * dt) % (2 * np.pi)\n"
+         "    axis = w_mean / max(np.linalg.norm(w_mean), 1e-300)\n"
+         "    R_next = R @ so3.Exp(min(theta, 2 * np.pi - theta) * axis)\n", keyword="large rotation",
+         mistake="the angle folded into [0, π] without turning the axis round (wrong beyond π)"),
+    # --- behaviour: arguments changed in place, single precision (issue 25) -----------------
+    Edit("attitude_step", _ATT, "R[:] = R @ so3.Exp(w_mean * dt)\n    R_next = R.copy()\n", keyword="in place",
+         mistake="the new attitude written into the caller's R"),
+    Edit("attitude_step", _ATT, "R @= so3.Exp(w_mean * dt)\n    R_next = R\n", keyword="in place",
+         mistake="R @= Exp(φ): the caller's R turned in place, and returned"),
+    Edit("attitude_step", _W, "w0 += w1\n    w0 *= 0.5\n    w_mean = w0 - b_w", keyword="in place",
+         mistake="the mean rate accumulated into the caller's w0"),
+    Edit("attitude_step", _ATT, "R_next = (R @ so3.Exp(w_mean * dt)).astype(np.float32)\n",
+         keyword="single precision", mistake="the attitude in float32"),
+    # (the first case is an IMU at rest, whose increment is zero: there v comes back unchanged but
+    # is the caller's own array, which is named first)
+    Edit("velocity_step", _VNEXT, "v += 0.5 * (a0 + a1) * dt\n    v_next = v", keyword="argument v",
+         mistake="the increment added into the caller's v (v += ...)"),
+    Edit("velocity_step", _VNEXT, "v += 0.5 * (a0 + a1) * dt\n    v_next = v.copy()", keyword="in place",
+         mistake="the increment added into the caller's v, a copy returned"),
+    Edit("velocity_step", _A0, "f0 -= b_a\n    a0 = R0 @ f0 + g", keyword="in place",
+         mistake="the bias subtracted into the caller's reading f0"),
+    Edit("velocity_step", _VNEXT, "v_next = (v + 0.5 * (a0 + a1) * dt).astype(np.float32)",
+         keyword="single precision", mistake="the velocity in float32"),
+    Edit("position_step", _PNEXT, "p += 0.5 * (v0 + v1) * dt\n    p_next = p", keyword="in place",
+         mistake="the displacement added into the caller's p (p += ...)"),
+    Edit("position_step", _PNEXT, "p_next = np.asarray(p + 0.5 * (v0 + v1) * dt, dtype=np.float32)",
+         keyword="single precision", mistake="the position in float32"),
+    Edit("level_attitude", _RLEV, _RLEV + ".astype(np.float32)", keyword="single precision",
+         mistake="the levelled attitude in float32"),
+    Edit("mechanisation_run", "p, v, R = np.full((n, 3), np.nan), np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan)",
+         "p, v, R = (np.full((n, 3), np.nan, dtype=np.float32), np.full((n, 3), np.nan),\n"
+         "               np.full((n, 3, 3), np.nan))", keyword="single precision", mistake="positions stored in float32"),
+    # a correct loop whose velocity_step adds into v: row i − 1 changes under it (v[i − 1] is a view)
+    Edit("mechanisation_run", _VNEXT, "v += 0.5 * (a0 + a1) * dt\n    v_next = v", cell="vel",
+         keyword="fix velocity_step first", mistake="velocity_step adds into the caller's v"),
+    Edit("mechanisation_run", _PNEXT, "p += 0.5 * (v0 + v1) * dt\n    p_next = p", cell="pos",
+         keyword="fix position_step first", mistake="position_step adds into the caller's p"),
+
     # --- level_attitude (the optional challenge) ------------------------------------------
     Edit("level_attitude", _LEVEL, "R = np.eye(3)", keyword="identity",
          mistake="the identity: the IMU assumed level (the stub)"),

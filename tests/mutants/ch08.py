@@ -12,6 +12,7 @@ NOTEBOOK = "08_eskf"
 
 _DV_DTH = "F[3:6, 6:9] = -R @ so3.hat(a)"
 _Q_BW = "A[6:10, 13:16] = -0.5 * quat_xi(q)"
+_ALIGN = "return q_meas.copy() if q_meas @ q_check >= 0.0 else -q_meas"
 _FD_LOOP = ("    for i in range(15):\n        d = np.zeros(15)\n        d[i] = h\n"
             "        plus = nominal_step(inject(x, d), f, w, f, w, T, g)\n"
             "        minus = nominal_step(inject(x, -d), f, w, f, w, T, g)\n"
@@ -70,7 +71,6 @@ MUTANTS = [
          mistake="n_a not rotated: the hint shows its effect on B Q Bᵀ with an anisotropic accelerometer"),
     Edit("eskf_noise_jacobian", "B[3:6, 0:3] = R", "B[3:6, 0:3] = R.T", keyword="transpose",
          mistake="Rᵀ n_a"),
-    Edit("eskf_noise_jacobian", "B[3:6, 0:3] = R", "B[3:6, 0:3] = -R", keyword="sign", mistake="−R n_a"),
     Edit("eskf_noise_jacobian", "B[6:9, 3:6] = np.eye(3)", "B[6:9, 3:6] = R", keyword="body",
          mistake="gyro noise rotated by R"),
     Edit("eskf_noise_jacobian", "    B[6:9, 3:6] = np.eye(3)\n", "", keyword="missing",
@@ -104,7 +104,6 @@ MUTANTS = [
     Edit("eskf_discretisation", "F = np.eye(15) + F_t * T",
          "import scipy.linalg\n    F = scipy.linalg.expm(F_t * T)", keyword="first-order",
          mistake="matrix exponential instead of the lecture's first-order F (named in the hint)"),
-    Edit("eskf_discretisation", "B = B_t.copy()", "B = -B_t.copy()", keyword="sign", mistake="B negated"),
     # ---- propagate_covariance (a whole step: the placeholder returns P̂) ----
     Edit("eskf_propagate", "P_check = F @ P @ F.T + B @ Q @ B.T", "P_check = P", keyword="not propagated",
          mistake="P returned unchanged (the stub)"),
@@ -300,25 +299,73 @@ MUTANTS = [
          keyword="process_noise", mistake="process_noise with densities, not variances"),
     Edit("eskf_run", "d += [s_ba**2] * 3 + [s_bw**2] * 3", "d += [s_ba**2 * T] * 3 + [s_bw**2 * T] * 3",
          cell="disc", keyword="process_noise", mistake="random-walk variances multiplied by T in Q as well"),
+    # ---- R in the residual's units (the run's own task, exercise §8) ----
+    Edit("eskf_run", "R_noise = np.diag(cfg.lidar_std**2)",
+         "R_noise = np.diag(np.r_[cfg.lidar_std[:3], np.deg2rad(cfg.lidar_std[3:])] ** 2)", keyword="second time",
+         mistake="the attitude σ converted from degrees although cfg.lidar_std holds radians"),
+    Edit("eskf_run", "R_noise = np.diag(cfg.lidar_std**2)",
+         "R_noise = np.diag(np.array([0.2, 0.2, 0.2, 0.3, 0.3, 0.3]))", keyword="in degrees as well",
+         mistake="the stated σ (degrees) without squaring: σ for σ², and degrees for radians"),
+    Edit("eskf_run", "R_noise = np.diag(cfg.lidar_std**2)",
+         "R_noise = np.diag(np.r_[np.full(3, 0.2**2), np.deg2rad(np.full(3, 0.3**2))])",
+         keyword="square of the factor", mistake="the variance 0.3² deg² converted with one np.deg2rad"),
+    Edit("eskf_run", "R_noise = np.diag(cfg.lidar_std**2)",
+         "R_noise = np.diag(np.r_[cfg.lidar_std[:3] ** 2, cfg.lidar_std[3:]])", keyword="variance σ² belongs",
+         mistake="the attitude σ not squared (the position part right)"),
+    # ---- behaviour: arguments changed in place, single precision (issue 25) ----
+    Edit("eskf_propagate", "P_check = F @ P @ F.T + B @ Q @ B.T", "P[...] = F @ P @ F.T + B @ Q @ B.T\n    P_check = P",
+         keyword="in place", mistake="the prior written into the caller's P̂"),
+    Edit("eskf_propagate", "P_check = F @ P @ F.T + B @ Q @ B.T",
+         "P[:] = F @ P @ F.T\n    P += B @ Q @ B.T\n    P_check = P", keyword="in place",
+         mistake="P̂ propagated into itself, then the noise added with +="),
+    Edit("eskf_covariance_update", "P_hat = I_KG @ P @ I_KG.T + K @ R @ K.T",
+         "P[:] = I_KG @ P @ I_KG.T + K @ R @ K.T\n    P_hat = P", keyword="in place",
+         mistake="the posterior written into the caller's prior P̌"),
+    Edit("eskf_reset", "P = G @ P @ G.T", "P[:] = G @ P @ G.T", keyword="in place",
+         mistake="the reset written into the caller's P"),
+    Edit("eskf_inject", "p = x.position - dx[0:3]", "p = x.position\n    p -= dx[0:3]", keyword="in place",
+         mistake="the position corrected inside the nominal state handed in"),
+    Edit("eskf_inject", "R = x.rotation @ so3.Exp(-dx[6:9])", "x.rotation[:] = x.rotation @ so3.Exp(-dx[6:9])\n"
+         "    R = x.rotation.copy()", keyword="in place", mistake="the attitude corrected inside the nominal state handed in"),
+    Edit("eskf_discretisation", "B = B_t.copy()", "B = B_t", keyword="in place",
+         mistake="B_t's columns scaled in place (the caller's B_t changes)"),
+    Edit("eskf_error_dynamics", "F = np.zeros((15, 15))", "F = np.zeros((15, 15), dtype=np.float32)",
+         keyword="single precision", mistake="F_t in float32"),
+    Edit("eskf_gain", "return P @ G.T @ np.linalg.inv(S)", "return (P @ G.T @ np.linalg.inv(S)).astype(np.float32)",
+         keyword="single precision", mistake="the gain in float32"),
+    Edit("eskf_propagate", "return 0.5 * (P_check + P_check.T)", "return np.float32(0.5) * (P_check + P_check.T).astype(np.float32)",
+         keyword="single precision", mistake="P̌ in float32"),
+    Edit("eskf_inject", "return NominalState(p, v, R, b_a, b_w)",
+         "return NominalState(p.astype(np.float32), v, R, b_a, b_w)", keyword="single precision",
+         mistake="the corrected position in float32"),
+    Edit("nominal_ekf_observation", _ALIGN, "return q_meas if q_meas @ q_check >= 0.0 else -q_meas",
+         keyword="itself", mistake="q_meas itself returned (the caller's array, not a new one)"),
+    # a correct run whose propagate_covariance writes into the P it is given: the P stored for
+    # the last update changes under it; the hint must name propagate_covariance (an inject that
+    # corrects the state handed in leaves the run right, since the run keeps only what inject
+    # returns: its own check names it)
+    Edit("eskf_run", "P_check = F @ P @ F.T + B @ Q @ B.T", "P[...] = F @ P @ F.T + B @ Q @ B.T\n    P_check = P",
+         cell="prop", keyword="fix propagate_covariance first",
+         mistake="propagate_covariance writes the prior into the caller's P̂"),
     # ---- bonus: quaternion alignment ----
-    Edit("nominal_ekf_observation", "return q_meas if q_meas @ q_check >= 0.0 else -q_meas", "return q_meas",
+    Edit("nominal_ekf_observation", _ALIGN, "return q_meas",
          keyword="sign", mistake="no alignment (the stub)"),
-    Edit("nominal_ekf_observation", "return q_meas if q_meas @ q_check >= 0.0 else -q_meas",
-         "return q_meas if q_meas[0] >= 0.0 else -q_meas", keyword="sign",
+    Edit("nominal_ekf_observation", _ALIGN,
+         "return q_meas.copy() if q_meas[0] >= 0.0 else -q_meas", keyword="sign",
          mistake="canonical w ≥ 0 instead of aligning with q_check"),
-    Edit("nominal_ekf_observation", "return q_meas if q_meas @ q_check >= 0.0 else -q_meas",
-         "return q_meas if q_meas @ q_check <= 0.0 else -q_meas", keyword="sign", mistake="test reversed"),
-    Edit("nominal_ekf_observation", "return q_meas if q_meas @ q_check >= 0.0 else -q_meas",
-         "return q_meas if q_meas[1:] @ q_check[1:] >= 0.0 else -q_meas", keyword="four",
+    Edit("nominal_ekf_observation", _ALIGN,
+         "return q_meas.copy() if q_meas @ q_check <= 0.0 else -q_meas", keyword="sign", mistake="test reversed"),
+    Edit("nominal_ekf_observation", _ALIGN,
+         "return q_meas.copy() if q_meas[1:] @ q_check[1:] >= 0.0 else -q_meas", keyword="four",
          mistake="dot product of the vector parts only"),
-    Edit("nominal_ekf_observation", "return q_meas if q_meas @ q_check >= 0.0 else -q_meas",
-         "return q_meas if q_meas[0] * q_check[0] >= 0.0 else -q_meas", keyword="four",
+    Edit("nominal_ekf_observation", _ALIGN,
+         "return q_meas.copy() if q_meas[0] * q_check[0] >= 0.0 else -q_meas", keyword="four",
          mistake="signs of the scalar parts only"),
     # ---- bonus: nominal-state Jacobian (a whole step: the placeholder leaves the rows of q̇ zero) ----
     Edit("nominal_ekf_jacobian", _Q_ROWS, "    pass", keyword="missing", mistake="rows of q̇ left zero (the stub)"),
     Edit("nominal_ekf_jacobian", _Q_ROWS,
          "    A[6:10, 6:10] = 0.5 * quat_omega(w - b_w)\n    A[6:10, 13:16] = 0.5 * quat_omega(w - b_w)[:, 1:]",
-         keyword="−½ Ξ(q)", mistake="∂q̇/∂b_ω taken from Ω (the factor that multiplies q), not Ξ(q)"),
+         keyword="(q, b_ω)", mistake="∂q̇/∂b_ω taken from Ω (the factor that multiplies q), not Ξ(q)"),
     Edit("nominal_ekf_jacobian", _Q_BW, "A[6:10, 13:16] = 0.5 * quat_xi(q)", keyword="minus sign",
          mistake="+½ Ξ(q)"),
     Edit("nominal_ekf_jacobian", _Q_BW, "A[6:10, 13:16] = -quat_xi(q)", keyword="½", mistake="½ missing"),
@@ -423,6 +470,17 @@ EQUIVALENTS = [
     Edit("eskf_discretisation", "B[:, :6] *= T", "B = B * np.r_[np.full(6, T), np.ones(B.shape[1] - 6)]",
          mistake="white-noise columns scaled by one broadcast product"),
     Edit("eskf_discretisation", "return F, B", "return [F, B]", mistake="list instead of tuple"),
+    # noise Jacobian: the filter uses B_t only in B Q Bᵀ, which the sign of a noise column leaves
+    # unchanged (−n has the covariance of n); the check compares B Q Bᵀ with a different variance
+    # on every column, so only sign choices pass this way
+    Edit("eskf_noise_jacobian", "B[3:6, 0:3] = R", "B[3:6, 0:3] = -R", mistake="−R n_a: the noise's sign chosen the other way"),
+    Edit("eskf_noise_jacobian", "B[6:9, 3:6] = np.eye(3)", "B[6:9, 3:6] = -np.eye(3)", mistake="−n_ω"),
+    Edit("eskf_noise_jacobian", "B[12:15, 9:12] = np.eye(3)", "B[12:15, 9:12] = -np.eye(3)",
+         mistake="the gyro-bias random walk driven by −n_bω"),
+    Edit("eskf_noise_jacobian", "B[3:6, 0:3] = R", "B[3:6, 0:3] = R * np.array([1.0, -1.0, 1.0])",
+         mistake="one accelerometer noise column negated"),
+    Edit("eskf_discretisation", "B = B_t.copy()", "B = -B_t.copy()",
+         mistake="B negated: B Q Bᵀ, all the filter uses of B, is unchanged"),
     Edit("eskf_propagate", "P_check = F @ P @ F.T + B @ Q @ B.T",
          "P_check = np.einsum('ij,jk,lk->il', F, P, F) + B @ Q @ B.T", mistake="einsum"),
     Edit("eskf_propagate", "P_check = F @ P @ F.T + B @ Q @ B.T",
@@ -471,21 +529,18 @@ EQUIVALENTS = [
          mistake="reset before injection (independent)"),
     Edit("eskf_run", "    return np.array(ts), np.array(ps), np.array(Rs), np.array(Ps)",
          "    return list(ts), list(ps), list(Rs), list(Ps)", mistake="lists returned"),
-    Edit("nominal_ekf_observation", "return q_meas if q_meas @ q_check >= 0.0 else -q_meas",
+    Edit("nominal_ekf_observation", _ALIGN,
          "return np.sign(np.dot(q_meas, q_check)) * q_meas", mistake="sign() of the dot product"),
-    Edit("nominal_ekf_observation", "return q_meas if q_meas @ q_check >= 0.0 else -q_meas",
-         "return q_meas if np.linalg.norm(q_meas - q_check) <= np.linalg.norm(q_meas + q_check) else -q_meas",
+    Edit("nominal_ekf_observation", _ALIGN,
+         "return q_meas.copy() if np.linalg.norm(q_meas - q_check) <= np.linalg.norm(q_meas + q_check) else -q_meas",
          mistake="nearer of ±q_meas in distance"),
-    Edit("nominal_ekf_observation", "return q_meas if q_meas @ q_check >= 0.0 else -q_meas",
-         "return -q_meas if np.dot(q_check, q_meas) < 0 else q_meas", mistake="test written the other way round"),
+    Edit("nominal_ekf_observation", _ALIGN,
+         "return -q_meas if np.dot(q_check, q_meas) < 0 else q_meas.copy()", mistake="test written the other way round"),
     Edit("nominal_ekf_jacobian", _Q_BW, "A[6:10, 13:16] = -0.5 * quat_omega(w - b_w)[:, 1:] * 0 - 0.5 * quat_xi(q)",
          mistake="same block, written with a zero term"),
 ]
 
 EQUIVALENT_MUTANTS = [
-    Equivalent("eskf_discretisation", "B = B_t.copy()", "B = B_t",
-               reason="scaling B_t in place: call() hands the learner a copy and the run builds a fresh "
-                      "B_t each step, so no caller sees the change"),
     Equivalent("eskf_propagate", "return 0.5 * (P_check + P_check.T)", "return P_check",
                reason="F P Fᵀ + B Q Bᵀ is symmetric to round-off (1e-16), far inside the 1e-9 symmetry test"),
     Equivalent("eskf_propagate", "B @ Q @ B.T", "B @ Q.T @ B.T", reason="Q is symmetric (diagonal)"),

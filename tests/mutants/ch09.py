@@ -118,6 +118,11 @@ MUTANTS = [
     _nees("    return np.linalg.solve(P, error)", "vector", "returns P⁻¹ e (a vector)"),
     _nees("    return np.outer(error, np.linalg.solve(P, error))", "outer product",
           "e (P⁻¹ e)ᵀ: transpose on the wrong side"),
+    _nees("    error[:] = np.linalg.solve(np.linalg.cholesky(P), error)  # whitened in place\n"
+          "    return float(error @ error)", "in place", "the caller's error whitened in place"),
+    _nees("    return np.float32(error @ np.linalg.solve(P, error))", "single precision", "NEES returned as float32"),
+    _nees("    Pf, ef = P.astype(np.float32), error.astype(np.float32)\n"
+          "    return np.linalg.solve(Pf, ef) @ ef", "single precision", "computed in float32"),
 
     # ---- consistency_nis: ν̃ = νᵀ S⁻¹ ν, S = G P̌ Gᵀ + R
     _nis(S_LINE, "    S = G @ P_check @ G.T\n", "observation noise", "R left out of S"),
@@ -145,6 +150,10 @@ MUTANTS = [
          "add the covariances first", "(G P̌ Gᵀ)⁻¹ + R⁻¹"),
     _nis(NIS_RET, "    return float(innovation @ np.linalg.solve(P_check, innovation))", "P̌⁻¹",
          "the state's prior P̌ instead of S (only square G)"),
+    _nis(NIS_RET, "    innovation[:] = np.linalg.solve(np.linalg.cholesky(S), innovation)  # whitened in place\n"
+                  "    return float(innovation @ innovation)", "in place", "the caller's innovation whitened in place"),
+    _nis(S_LINE, "    S = R\n    S += G @ P_check @ G.T\n", "in place", "S built in the caller's R (S = R aliases it)"),
+    _nis(NIS_RET, "    return np.float32(nees(innovation, S))", "single precision", "NIS returned as float32"),
     _nis(NIS_RET, NIS_RET + "\n\n\n" + BROKEN_NEES, "fix nees first",
          "nis through the learner's own nees, which is wrong (dependency)"),
 
@@ -193,9 +202,13 @@ MUTANTS = [
                     "    hi = k * (1 - 2 / (9 * k) + z * np.sqrt(2 / (9 * k))) ** 3 / n_runs\n",
               "Wilson–Hilferty", "Wilson–Hilferty approximation"),
     _interval("    return lo, hi", "    return lo", "two numbers", "returns only lo"),
+    _interval("    return lo, hi", "    return np.float32(lo), np.float32(hi)", "single precision",
+              "the bounds as float32"),
 
     # ---- innovation_gate: accept iff νᵀ S⁻¹ ν ≤ F⁻¹(confidence; m)
     _gate(GATE_BODY, "    return True", "refuses nothing", "accepts every innovation (the stub)"),
+    _gate(GATE_V, "    innovation[:] = np.linalg.solve(np.linalg.cholesky(S), innovation)  # whitened in place\n"
+                  "    value = innovation @ innovation\n", "in place", "the caller's innovation whitened in place"),
     _gate(GATE_BODY, "    return False", "never uses its sensor", "refuses every innovation"),
     _gate(GATE_BODY, "    lo, hi = chi2_interval(len(innovation), 1, confidence)\n"
                      "    return bool(lo <= nees(innovation, S) <= hi)", "one-sided",
@@ -281,6 +294,40 @@ MUTANTS = [
              "a margin on the lower bound (mean < 0.9 lo)"),
     _verdict('    if mean > hi:\n', '    if mean > 1.05 * hi:\n', "above the upper bound",
              "a margin on the upper bound (mean > 1.05 hi)"),
+    # the verdict taken from single values (the share inside the interval of one value), not from the mean
+    _verdict(VERDICT_BODY, "    lo, hi = chi2_interval(dof, 1, confidence)\n"
+                           "    if np.mean((nis_values >= lo) & (nis_values <= hi)) >= confidence:\n"
+                           '        return "consistent"\n'
+                           '    return "overconfident" if np.mean(nis_values) > dof else "underconfident"\n',
+             "share of single", "the share of single NIS values inside the one-value interval, the side by the mean"),
+    _verdict(VERDICT_BODY, "    lo, hi = chi2_interval(dof, 1, confidence)\n"
+                           "    if np.mean(nis_values > hi) > (1 - confidence) / 2:\n"
+                           '        return "overconfident"\n'
+                           "    if np.mean(nis_values < lo) > (1 - confidence) / 2:\n"
+                           '        return "underconfident"\n'
+                           '    return "consistent"\n',
+             "share of single", "each tail's share of single NIS values against (1 − c)/2"),
+    _verdict(VERDICT_BODY, "    lo, hi = chi2_interval(dof, 1, confidence)\n"
+                           "    above, below = np.mean(nis_values > hi), np.mean(nis_values < lo)\n"
+                           "    if 1 - above - below >= confidence:\n"
+                           '        return "consistent"\n'
+                           '    return "overconfident" if above > below else "underconfident"\n',
+             "share of single", "the share inside the one-value interval, the side by the fuller tail"),
+    _verdict(BOUNDS, "    lo, hi = chi2_ppf((1 - confidence) / 2, dof), chi2_ppf((1 + confidence) / 2, dof)\n",
+             "ONE value", "the interval of one χ²(dof) value written out, used for the mean"),
+    _verdict(BOUNDS, "    N = len(nis_values)\n"
+                     "    lo, hi = chi2_ppf((1 - confidence) / 2, dof) / N, chi2_ppf((1 + confidence) / 2, dof) / N\n",
+             "N · dof degrees of freedom, not dof", "the quantiles of χ²(m) divided by N (m where N · m belongs)"),
+    _verdict(BOUNDS, "    N = len(nis_values)\n"
+                     "    lo, hi = chi2_ppf((1 - confidence) / 2, N) / N, chi2_ppf((1 + confidence) / 2, N) / N\n",
+             "N · dof of them, not N", "the quantiles of χ²(N) divided by N (N where N · m belongs)"),
+    _verdict(VERDICT_BODY, "    hi = chi2_ppf(confidence, dof * len(nis_values)) / len(nis_values)\n"
+                           "    if np.mean(nis_values) > hi:\n"
+                           '        return "overconfident"\n'
+                           '    return "consistent"\n',
+             "one-sided", "a one-sided test at the c quantile of the mean (never underconfident)"),
+    _verdict(MEAN, "    nis_values.sort()  # sorted in place, to look at the extremes\n" + MEAN, "in place",
+             "the caller's NIS record sorted in place"),
     _verdict(VERDICT_TAIL, VERDICT_TAIL.replace(BOUNDS, VIA_INTERVAL) + "\n\n\n" + BROKEN_INTERVAL,
              "fix chi2_interval first", "verdict through the learner's own chi2_interval, which is wrong (dependency)"),
 
@@ -433,6 +480,9 @@ EQUIVALENT_MUTANTS = [
                reason="the sign of the error (estimate − truth or truth − estimate) cancels in eᵀ P⁻¹ e"),
     Equivalent("consistency_nis", NIS_RET, "    return float(-innovation @ np.linalg.solve(S, -innovation))",
                reason="the sign of the innovation (y − ŷ or ŷ − y) cancels in νᵀ S⁻¹ ν"),
+    Equivalent("consistency_nees", NEES, "    error /= 1.0\n" + NEES,
+               reason="a division by 1 in place leaves the caller's error as it was (the same values): "
+                      "nothing changed, nothing to report"),
     Equivalent("consistency_nees", NEES, "    return float(error.T @ np.linalg.solve(P.T, error))",
                reason=".T of a 1-D error is a no-op, and P is symmetric"),
 ]

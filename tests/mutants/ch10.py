@@ -5,6 +5,9 @@ Checks and tolerances (``kalman_course/checks/real_sensors.py``):
 - gauss_markov_blocks, augmented_matrices, relative_motion: rtol 1e-9, atol 1e-12 (round-off
   only); every mistake below is off by more than 1e-3 relative on some case (steps longer than
   τ, σ different per component, tilted KITTI attitudes, a rigidly moved track).
+  gauss_markov_blocks is then judged across a sweep of T/τ from 1e-6 to 1e3, which catches the
+  special cases for short or long steps below ("sweep"); relative_motion and the residual also
+  meet increments of 1e-8 rad and of π − 1e-6 rad, about an axis and its opposite.
 - relative_pose_residual: position part 1e-9 m; attitude part |y_θ|² (the first-order
   (ΔR_mᵀ ΔŘ − I)^∨ passes, see EQUIVALENTS); the mistakes err by O(|y_θ|) or O(|ΔŘ| |y_θ|) on
   increments of up to 1.45 rad.
@@ -110,7 +113,7 @@ MUTANTS = [
     _gm(F_E, "    F_e = np.zeros((6, 6))\n", "white noise", "F_e = 0"),
     _gm(Q_E, "    Q_e = np.diag(sigma**2 * T)\n", "units", "σ²T, the white-noise integral"),
     _gm(Q_E, "    Q_e = np.diag(sigma**2)\n", "whole stationary variance", "σ² every step"),
-    _gm(Q_E, "    Q_e = np.diag(sigma**2 * (1.0 - phi))\n", "1 − φ²", "σ²(1 − φ)"),
+    _gm(Q_E, "    Q_e = np.diag(sigma**2 * (1.0 - phi))\n", "not φ σ²", "σ²(1 − φ)"),
     _gm(Q_E, "    Q_e = np.diag(sigma**2 * (1.0 - phi)**2)\n", "σ²(1 − φ)²", "σ²(1 − φ)²"),
     _gm(Q_E, "    Q_e = np.diag(sigma * (1.0 - phi**2))\n", "standard deviation", "σ instead of σ²"),
     _gm(Q_E, "    Q_e = np.diag(sigma * np.sqrt(1.0 - phi**2))\n", "standard deviation of the new part",
@@ -122,6 +125,17 @@ MUTANTS = [
     _gm(Q_E, "    Q_e = sigma**2 * (1.0 - phi**2)\n", "np.diag", "the diagonal as a vector"),
     _gm(GM_RET, "    return Q_e, F_e", "swapped", "(Q_e, F_e) returned"),
     _gm(GM_RET, "    return F_e", "tuple", "only F_e returned"),
+    _gm(Q_E, "    sigma **= 2  # the variances, in place\n    Q_e = np.diag(sigma * (1.0 - phi**2))\n", "in place",
+        "σ squared into the caller's array"),
+    _gm(F_E, "    F_e = (phi * np.eye(6)).astype(np.float32)\n", "single precision", "F_e in float32"),
+    _gm(PHI, "    phi = np.float32(np.exp(-T / tau))\n", "single precision", "φ in float32 (both blocks follow it)"),
+    # special cases for short or long steps, right on the main cases, wrong across the sweep of T/τ
+    _gm(PHI, "    phi = 1.0 - T / tau if T < 1e-3 * tau else np.exp(-T / tau)\n", "sweep",
+        "the first-order decay below T/τ = 1e-3"),
+    _gm(PHI, "    phi = 0.0 if T > 20 * tau else np.exp(-T / tau)\n", "sweep",
+        "no memory left beyond T = 20 τ (exp(−20) = 2e-9 is not 0)"),
+    _gm(Q_E, "    Q_e = np.diag(2.0 * sigma**2 * T / tau if T < 1e-4 * tau else sigma**2 * (1.0 - phi**2))\n",
+        "sweep", "the first-order variance below T/τ = 1e-4"),
 
     # ---- augmented_matrices: F_aug = blockdiag(F, F_e), Q_aug = blockdiag(B Q Bᵀ, Q_e)
     _aug(AUG_BODY, "    F_aug, Q_aug = np.eye(21), np.zeros((21, 21))\n", "placeholder",
@@ -165,6 +179,11 @@ MUTANTS = [
     _rel(DR, "    dR = R0 @ R1\n", "inverse of R0 is missing", "R0 R1"),
     _rel(DR, "    dR = R1 @ R0\n", "order and inverse", "R1 R0"),
     _rel(REL_RET, "    return dR, dp", "shape", "(ΔR, Δp) returned"),
+    _rel(DP, "    p1 -= p0  # the displacement, in place\n    dp = R0.T @ p1\n", "in place",
+         "the displacement subtracted into the caller's p1"),
+    _rel(DR, "    R1[:] = R0.T @ R1  # composed into the caller's pose\n    dR = R1\n", "in place",
+         "ΔR composed into the caller's R1"),
+    _rel(DR, "    dR = (R0.T @ R1).astype(np.float32)\n", "single precision", "ΔR in float32"),
 
     # ---- relative_pose_residual: [Δp̌ − Δp_m; Log(ΔR_mᵀ ΔŘ)]
     _res(THETA, "    dtheta = so3.Log(dR_check) - so3.Log(dR_meas)\n", "do not subtract",
@@ -178,6 +197,8 @@ MUTANTS = [
     _res(RES_RET, "    return np.concatenate([dp_meas - dp_check, dtheta])", "position part",
          "sign of the position part"),
     _res(RES_RET, "    return np.zeros(6)", "nothing was compared", "zero residual"),
+    _res(RES_RET, "    dp_meas -= dp_check  # in place\n    return np.concatenate([-dp_meas, dtheta])", "in place",
+         "the prediction subtracted into the caller's measured Δp"),
     _res(RES_RET, "    return np.concatenate([dtheta, dp_check - dp_meas])", "order", "[θ; p]"),
     _res(RES_CALL, "    dp_check, dR_check = relative_motion(p_check, R_check, p_clone, R_clone)\n",
          "current pose to the clone", "the increment predicted backwards"),
@@ -189,6 +210,7 @@ MUTANTS = [
     # ---- relative_pose_jacobian: the clone's columns
     _jac(JAC_BODY, "    pass\n", "treated as exactly known", "the clone's columns left empty (the stub)"),
     _jac(G_PC, "    G[0:3, 15:18] = R_clone.T\n", "minus", "+Ř_cᵀ for δp_c"),
+    _jac(G_PC, G_PC + "    G = G.astype(np.float32)\n", "single precision", "G returned in float32"),
     _jac(G_PC, "    G[0:3, 15:18] = -np.eye(3)\n", "rotated like the current one", "−I for δp_c"),
     _jac(G_PC, "    G[0:3, 15:18] = -R_clone\n", "R_c = R_nb", "−Ř_c for δp_c"),
     _jac(G_PC, "", "missing", "δp_c block left zero"),
