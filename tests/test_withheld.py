@@ -105,12 +105,12 @@ ROUTES = {
     "agent_call_replaced": """
         import kalman_course.checks.kernel_agent as _agent
         from kalman_course.filters import kf as _kf
-        _real_call = _agent.call_quietly
+        _real_call = _agent.call_watched
         def _forged(fn, args):
             if getattr(fn, "__name__", "") == "kf_update":
-                return _kf.kf_update(*args)
+                return _kf.kf_update(*args), []
             return _real_call(fn, args)
-        _agent.call_quietly = _forged
+        _agent.call_watched = _forged
         def kf_update(x_check, P_check, y, G, R):
             raise NotImplementedError
     """,

@@ -87,15 +87,12 @@ def _describe(namespace: dict, name: str) -> dict:
             "globals": sorted(global_names(code)) if isinstance(code, types.CodeType) else None}
 
 
-def call_quietly(fn, args: tuple):
-    """``fn(*args)`` as the checks call learner code: on fresh copies of the arguments, its
-    prints and warnings silenced, floating-point warnings off (a grader cell and this agent
-    both call learner functions this way)."""
-    return _quietly(fn, _copies(args))
-
-
 def call_watched(fn, args: tuple):
-    """:func:`call_quietly`, and how the call behaved besides its result.
+    """``fn(*args)`` as the checks call learner code, and how the call behaved besides its result.
+
+    The call runs on fresh copies of the arguments, its prints and warnings silenced and
+    floating-point warnings off (a grader cell and this agent both call learner functions
+    this way).
 
     Returns
     -------
@@ -199,11 +196,6 @@ def _quiet():
             warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore")
         yield
-
-
-def _quietly(fn, args: tuple):
-    with _quiet():
-        return fn(*args)
 
 
 def _parameter_names(fn, count: int) -> list[str]:
