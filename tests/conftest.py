@@ -13,6 +13,14 @@ from kalman_course.checks import hints  # noqa: E402
 
 hints.set_tier(1, escalate=False)
 
+
+@pytest.fixture(autouse=True)
+def hints_at_tier_one():
+    """Every test starts from tier 1 without escalation, whatever an earlier test set (an
+    in-process ``kalman-course grade`` sets the tier of its run, ``--all-hints`` tier 2)."""
+    hints.set_tier(1, escalate=False)
+    yield
+
 ROOT = Path(__file__).resolve().parent.parent
 
 
