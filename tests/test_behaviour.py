@@ -124,6 +124,27 @@ def test_the_callers_arrays_are_never_touched():
     np.testing.assert_array_equal(P0, P)
 
 
+
+@pytest.mark.parametrize("remote", [False, True], ids=["in the kernel", "through the protocol"])
+def test_only_a_checks_first_call_of_a_function_is_repeated(remote):
+    # a whole run called once costs two runs; a sweep of many calls costs one more call, not twice as many
+    source = "calls = []\ndef predict(P, F, Q):\n    calls.append(1)\n    return F @ P @ F.T + Q\n"
+    namespace = {"np": np, "__name__": "__main__"}
+    exec(source, namespace)
+    learner = LearnerFunction(LocalSession(namespace), "predict") if remote else namespace["predict"]
+
+    @harness.check
+    def check_behaviour_thrice(predict):
+        for _ in range(3):
+            harness.expect_close(harness.call(predict, P, F, Q), EXPECTED, "P_check")
+    try:
+        check_behaviour_thrice.judge(learner)
+        assert len(namespace["calls"]) == 4
+        check_behaviour_thrice.judge(learner)  # the next check run repeats its first call again
+        assert len(namespace["calls"]) == 8
+    finally:
+        harness._REGISTRY.pop("behaviour_thrice", None)
+
 #: learner functions f(x) handed to a package function (numerical_jacobian) that calls them
 DRIVEN = {
     "correct": ("def f(x):\n    return np.array([x[0] * x[1], np.sin(x[0])])\n", None),

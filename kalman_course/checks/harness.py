@@ -103,7 +103,7 @@ def check(fn: Callable | None = None, *, uses: tuple[str, ...] | dict[str, str] 
     name = fn.__name__[len(CHECK_PREFIX):]
 
     def judge(*args, **kwargs):
-        token = _MISBEHAVED.set([])
+        token, repeated = _MISBEHAVED.set([]), _REPEATED.set(set())
         try:
             fn(*args, **kwargs)
             _raise_first_misbehaviour(_MISBEHAVED.get())
@@ -117,6 +117,7 @@ def check(fn: Callable | None = None, *, uses: tuple[str, ...] | dict[str, str] 
             _LAST_FAILURE.pop(name, None)
         finally:
             _MISBEHAVED.reset(token)
+            _REPEATED.reset(repeated)
 
     @functools.wraps(fn)
     def run(*args, **kwargs):
@@ -248,9 +249,10 @@ def call(fn: Callable, *args, label: str | None = None):
     whole filter built from the learner's steps); only plain data crosses.
     """
     label = label or getattr(fn, "__name__", "your function")
+    repeat = _first_call(fn)
     session = session_of(fn, args)
     if session is not None:
-        answer = session.call(fn, args)
+        answer = session.call(fn, args, repeat=repeat)
         if "not_callable" in answer:
             raise CheckFailed(f"expected a function, got {answer['not_callable']}")
         if "raised" in answer:
@@ -266,13 +268,32 @@ def call(fn: Callable, *args, label: str | None = None):
     if not callable(fn):
         raise CheckFailed(f"expected a function, got {type(fn).__name__}")
     try:
-        result, behaviour = call_watched(fn, args)
+        result, behaviour = call_watched(fn, args, repeat=repeat)
     except CheckFailed:
         raise
     except Exception as exc:  # the learner's code may raise anything
         raise CheckFailed(f"{label} raised {type(exc).__name__}: {exc}") from None
     _note_misbehaviour(label, behaviour)
     return result
+
+
+#: The functions the running check has called so far: only a function's first call in a
+#: check is repeated to see that it gives the same answer (a whole filter run would otherwise
+#: cost twice its time, and state kept between calls shows on the first repeat).
+_REPEATED: contextvars.ContextVar[set | None] = contextvars.ContextVar("repeated", default=None)
+
+
+def _first_call(fn) -> bool:
+    """Whether this is the running check's first call of ``fn`` (always, outside a check)."""
+    called = _REPEATED.get()
+    if called is None:
+        return True
+    try:
+        first = fn not in called
+        called.add(fn)
+    except TypeError:  # not hashable: not a function, and the call will say so
+        return True
+    return first
 
 
 #: The properties of well-behaved code that the learner's calls broke during the running check:

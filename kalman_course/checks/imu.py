@@ -9,7 +9,7 @@ down to 1e-12 rad/s, and KITTI samples with made-up biases. The whole run is com
 :func:`kalman_course.core.imu.dead_reckon` on synthetic motion (constant dt, whose truth the
 midpoint rule reproduces exactly) and on a KITTI slice (irregular dt, not at the start of
 the data); a run whose rows never leave the initial state is named as the loop's placeholder.
-Levelling is judged by what defines it, R f/|f| = up (any heading), on tilts from 0 to 150°,
+Levelling is judged by what defines it, R f/|f| = up (any heading), on tilts from 0 to 150° and exactly 180°,
 a reading longer than g and KITTI means.
 
 When a result is wrong, the check looks for the plausible mistake that reproduces the
@@ -1001,6 +1001,10 @@ LEVEL_ATOL = 1e-9
 
 _LEVEL_NAN = ("when the IMU is level, f is parallel to up and the axis f × up is zero: normalising it "
               "divides 0 by 0. A level IMU needs no rotation: return the identity there (lecture 07 §1)")
+_LEVEL_UPSIDE_DOWN = ("when the IMU is exactly upside down, f points straight down: the axis f × up is zero, as "
+                      "for a level IMU, but the tilt is 180°, not 0. Every horizontal axis turns down onto up "
+                      "by half a turn: handle this case on its own (lecture 07 §1)"
+                      + _F(": a half turn about x, R = diag(1, −1, −1)"))
 _LEVEL_NORMALISE = ("arccos of a number outside [−1, 1] is NaN: the cosine of the tilt is the dot product "
                     "of UNIT vectors (|f| ≈ 9.81 m/s²; lecture 07 §1)" + _F(": f/|f| · up"))
 
@@ -1050,7 +1054,7 @@ def _drawn_level(rng):
 
 @functools.lru_cache(maxsize=None)
 def _level_cases():
-    """(name, f, unit f, tilt) of the levelling check: tilts from 0 to 150°, |f| ≠ g, KITTI means."""
+    """(name, f, unit f, tilt) of the levelling check: tilts from 0 to 180°, |f| ≠ g, KITTI means."""
     g = 9.8092
     tilts, level, windows = inputs.fixed_or_drawn(_FIXED_LEVEL, _drawn_level, "imu.level")
     raw = []
@@ -1060,6 +1064,8 @@ def _level_cases():
         R_true = so3.exp(tilt * axis) @ so3.exp(heading * UP)
         raw.append((name, scale * R_true.T @ (g * UP)))         # a resting IMU reads R_trueᵀ (−g)
     raw.append(("level (f straight up)", np.array([0.0, 0.0, level * g])))
+    # f × up is zero here too: a guard for the level IMU alone returns the identity, or a reflection
+    raw.append(("exactly upside down (f straight down)", np.array([0.0, 0.0, -level * g])))
     ex = load_kitti("cruise")
     for k in windows:  # KITTI's readings averaged over 1 s: real tilt, noise and motion
         raw.append((f"KITTI, mean of samples {k}..{k + 99}", ex.imu.specific_force[k:k + 100].mean(axis=0)))
@@ -1106,13 +1112,14 @@ def check_level_attitude(level_attitude):
     turned = []
     rotations = []
     for c in cases:
-        level = c["tilt"] == 0.0
+        # f × up = 0 on these two: the singular cases have hints of their own
+        singular = {0.0: _LEVEL_NAN, np.pi: _LEVEL_UPSIDE_DOWN}.get(c["tilt"])
         what = f"R on the case '{c['name']}'"
         try:
-            got = _call_step(level_attitude, c["f"], hint=f"on the case '{c['name']}', {_LEVEL_NAN}" if level else "")
+            got = _call_step(level_attitude, c["f"], hint=f"on the case '{c['name']}', {singular}" if singular else "")
         except CheckFailed as exc:
             # a NaN handed on (to so3.Exp, say) raises before we see it: the same hint as for a NaN result
-            if not level and "nan" in str(exc).lower():
+            if not singular and "nan" in str(exc).lower():
                 raise CheckFailed(f"{exc} (on the case '{c['name']}'). Hint: {_LEVEL_NORMALISE}") from None
             raise
         _expect_double(got, what)
@@ -1120,27 +1127,37 @@ def check_level_attitude(level_attitude):
             R = expect_shape(got, (3, 3), what)
         except CheckFailed as exc:
             if "NaN" in str(exc):
-                raise CheckFailed(f"{exc}. Hint: {_LEVEL_NAN if level else _LEVEL_NORMALISE}") from None
+                raise CheckFailed(f"{exc}. Hint: {singular or _LEVEL_NORMALISE}") from None
             raise
         if not so3.is_rotation(R, tol=1e-9):
             err = np.max(np.abs(R.T @ R - np.eye(3)))
-            raise CheckFailed(f"{what} is not a rotation matrix (|RᵀR − I| = {err:.2g}). Hint: build it as "
-                              "so3.Exp of a rotation vector (lecture 07 §1)"
-                              + _F(": the tilt angle (rad) times a UNIT axis"))
+            det = np.linalg.det(R)
+            kind = (f"a reflection, not a rotation (det R = {det:.3g})" if err < 1e-9 else
+                    f"not a rotation matrix (|RᵀR − I| = {err:.2g})")
+            raise CheckFailed(f"{what} is {kind}. "
+                              "Hint: " + (_LEVEL_UPSIDE_DOWN if c["tilt"] == np.pi else
+                                          "build it as so3.Exp of a rotation vector (lecture 07 §1)"
+                                          + _F(": the tilt angle (rad) times a UNIT axis")))
         rotations.append(R)
         turned.append(_turned(R, c))
     failing = [k for k, v in enumerate(turned) if not np.allclose(v, UP, rtol=0.0, atol=LEVEL_ATOL)]
     if not failing:
         return
-    # a predicate is "evaluated" on a case into the test of the learner's R there
-    why = known_mistake(rotations, cases, _LEVEL_MISTAKES, evaluate=lambda fits, c: lambda R: fits(R, c),
-                        close=_holds)
+    upside_down = [k for k, c in enumerate(cases) if c["tilt"] == np.pi]
+    if failing == upside_down:
+        raise CheckFailed(f"R does not level the IMU on the case '{cases[failing[0]]['name']}' (R f/|f| is "
+                          f"{np.degrees(_tilt(turned[failing[0]])):.3g}° away from up). Hint: {_LEVEL_UPSIDE_DOWN}")
+    # a predicate is "evaluated" on a case into the test of the learner's R there; the upside-down
+    # case is left out (a guard for f × up = 0 makes most mistakes right there)
+    kept = [k for k in range(len(cases)) if k not in upside_down]
+    why = known_mistake([rotations[k] for k in kept], [cases[k] for k in kept], _LEVEL_MISTAKES,
+                        evaluate=lambda fits, c: lambda R: fits(R, c), close=_holds)
     if why:
         raise CheckFailed(f"R does not level the IMU. Hint: {why}")
-    beyond_90 = [k for k, c in enumerate(cases) if c["tilt"] > 0.5 * np.pi]
-    if failing == beyond_90:
+    beyond_90 = [k for k, c in enumerate(cases) if 0.5 * np.pi < c["tilt"] < np.pi]
+    if [k for k in failing if k not in upside_down] == beyond_90:
         raise CheckFailed("R levels the IMU up to 90° of tilt but not beyond (case "
-                          f"'{cases[failing[0]]['name']}'). Hint: quadrant: arcsin or arctan(y/x) cannot tell a "
+                          f"'{cases[beyond_90[0]]['name']}'). Hint: quadrant: arcsin or arctan(y/x) cannot tell a "
                           "tilt θ from 180° − θ (lecture 07 §1)"
                           + _F("; use np.arctan2 with both arguments, or arccos of the cosine"))
     k = failing[0]

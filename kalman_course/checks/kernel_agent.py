@@ -87,12 +87,14 @@ def _describe(namespace: dict, name: str) -> dict:
             "globals": sorted(global_names(code)) if isinstance(code, types.CodeType) else None}
 
 
-def call_watched(fn, args: tuple):
+def call_watched(fn, args: tuple, repeat: bool = True):
     """``fn(*args)`` as the checks call learner code, and how the call behaved besides its result.
 
     The call runs on fresh copies of the arguments, its prints and warnings silenced and
     floating-point warnings off (a grader cell and this agent both call learner functions
-    this way).
+    this way). With ``repeat`` (a check asks for it on its first call of each function, see
+    :func:`harness.call`), a function of the notebook is called a second time on the same
+    inputs.
 
     Returns
     -------
@@ -108,10 +110,10 @@ def call_watched(fn, args: tuple):
         for functions of the notebook only, whose calls are cheap).
     """
     with _quiet():
-        return _watched_call(fn, args)
+        return _watched_call(fn, args, repeat)
 
 
-def _watched_call(fn, args: tuple):
+def _watched_call(fn, args: tuple, repeat: bool):
     given = _copies(args)  # the learner's code never sees ``args`` themselves: they stay as they were
     inner: list = []  # what the notebook's functions that a package function drives did
     result = fn(*(given if _of_the_notebook(fn) else _watching(given, inner)))
@@ -123,7 +125,7 @@ def _watched_call(fn, args: tuple):
     behaviour += [["aliased", name] for name in dict.fromkeys(
         name for r in _arrays(result) for name, a in given_arrays if np.shares_memory(r, a))]
     behaviour += [["precision", what] for what in _narrow_floats(result)]
-    if not behaviour and _of_the_notebook(fn):
+    if repeat and not behaviour and _of_the_notebook(fn):
         try:
             again = fn(*_copies(args))
         except (Exception, SystemExit):
@@ -185,7 +187,9 @@ _RAISED = object()  # what a second call that raised is compared as
 def _copies(args: tuple) -> tuple:
     """A fresh copy of each argument, each on its own: two arguments that were one array become
     two, as they do when they cross from the grading process as plain data."""
-    return tuple(copy.deepcopy(arg) for arg in args)
+    return tuple(arg.copy() if type(arg) is np.ndarray and arg.dtype != object
+                 else arg if type(arg) in (float, int, bool, str, type(None))
+                 else copy.deepcopy(arg) for arg in args)
 
 
 @contextlib.contextmanager
@@ -295,7 +299,7 @@ def _call(namespace: dict, request: dict):
     if not callable(fn):
         return {"not_callable": type(fn).__name__}
     try:
-        result, behaviour = call_watched(fn, request["args"])
+        result, behaviour = call_watched(fn, request["args"], repeat=request.get("repeat", True) is not False)
     except (Exception, SystemExit) as exc:  # the learner's code may raise anything
         return {"raised": plain_data.Raised(type(exc).__name__, str(exc))}
     return {"result": result, "behaviour": behaviour} if behaviour else {"result": result}

@@ -65,10 +65,14 @@ class Session:
             return {"raised": plain_data.Raised("NotPlainData", "the kernel's answer was malformed")}
         return decoded
 
-    def call(self, callee, args: tuple) -> dict:
+    def call(self, callee, args: tuple, repeat: bool = True) -> dict:
         """Run ``callee(*args)`` in the kernel: ``{"result": value}``, ``{"raised": Raised}``
-        or ``{"not_callable": type name}``."""
-        return self._ask({"op": "call", "callee": callee, "args": tuple(args)})
+        or ``{"not_callable": type name}``. Without ``repeat`` the kernel does not call it a
+        second time to see that the answer is the same."""
+        request = {"op": "call", "callee": callee, "args": tuple(args)}
+        if not repeat:
+            request["repeat"] = False
+        return self._ask(request)
 
     def withheld_calls(self) -> list[tuple[str, int, str, str]]:
         """(file of the calling code, line, function, the exercise function it stands for) of

@@ -335,6 +335,16 @@ MUTANTS = [
          keyword="not a rotation matrix", mistake="the first-order I + [φ]× instead of Exp"),
     Edit("level_attitude", _LEVEL, _EULER.replace("np.arctan2(f[1], f[2])", "np.arctan(f[1] / f[2])"),
          keyword="quadrant", mistake="roll and pitch with arctan(y/x): wrong beyond 90° of tilt"),
+    # f × up = 0 when the IMU is exactly upside down too: a guard for the level IMU alone
+    Edit("level_attitude", _GUARD, "if sin_tilt == 0.0:  # level: no axis to normalise\n        return np.eye(3)\n    ",
+         keyword="exactly upside down", mistake="the identity wherever f × up = 0, upside down too"),
+    Edit("level_attitude", _GUARD, "if sin_tilt == 0.0:\n"
+         "        return np.eye(3) if cos_tilt > 0.0 else np.diag([1.0, 1.0, -1.0])\n    ",
+         keyword="exactly upside down", mistake="z flipped alone upside down: a reflection, not a rotation"),
+    Edit("level_attitude", _LEVEL, "up_body = f / np.linalg.norm(f)\n"
+         "    q = np.concatenate([[1.0 + up_body @ UP], np.cross(up_body, UP)])\n"
+         "    R = so3.quat_to_matrix(q / np.linalg.norm(q))",
+         keyword="exactly upside down", mistake="the half-angle quaternion (1 + u·up, u × up): 0/0 upside down"),
 ]
 
 EQUIVALENTS = [
@@ -405,10 +415,6 @@ EQUIVALENTS = [
     Edit("level_attitude", _RLEV, "R = so3.Exp(np.arccos(cos_tilt) * axis / sin_tilt)",
          mistake="the tilt from arccos of the cosine"),
     Edit("level_attitude", _LEVEL, _EULER, mistake="roll and pitch (atan2), heading zero"),
-    Edit("level_attitude", _LEVEL, "up_body = f / np.linalg.norm(f)\n"
-         "    q = np.concatenate([[1.0 + up_body @ UP], np.cross(up_body, UP)])\n"
-         "    R = so3.quat_to_matrix(q / np.linalg.norm(q))",
-         mistake="the half-angle quaternion (1 + u·up, u × up), normalised"),
     Edit("level_attitude", _LEVEL, "from scipy.spatial.transform import Rotation\n"
          "    R = Rotation.align_vectors([UP], [f])[0].as_matrix()", mistake="scipy's align_vectors"),
     Edit("level_attitude", _LEVEL, "third = f / np.linalg.norm(f)\n"
