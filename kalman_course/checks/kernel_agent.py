@@ -123,7 +123,8 @@ def _watched_call(fn, args: tuple, repeat: bool):
     behaviour += inner
     given_arrays = [(names[i], a) for i, arg in enumerate(given) for a in _arrays(arg)]
     behaviour += [["aliased", name] for name in dict.fromkeys(
-        name for r in _arrays(result) for name, a in given_arrays if np.shares_memory(r, a))]
+        name for r in _arrays(result) for name, a in given_arrays
+        if np.may_share_memory(r, a) and np.shares_memory(r, a))]  # the first test is cheap, the second exact
     behaviour += [["precision", what] for what in _narrow_floats(result)]
     if repeat and not behaviour and _of_the_notebook(fn):
         try:
