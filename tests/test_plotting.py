@@ -226,6 +226,23 @@ def test_kf_figures():
         plotting.plot_kf_2d(t, x_hat[:, :2], x_hat[:, :2], hist, ellipse_every=-1)
 
 
+def test_kf_figures_label_their_curves():
+    n = 30
+    t = np.arange(n, dtype=float)
+    x_hat = np.column_stack([t, 2 * t, np.ones(n), np.ones(n)])
+    hist = FakeHistory(x_hat, np.tile(np.diag([0.5, 0.3, 0.1, 0.1]), (n, 1, 1)))
+    fig = plotting.plot_kf_1d(t, t, t, hist, labels={"measurements": "fixes (simulated noise)"})
+    texts = [text.get_text() for text in fig.axes[0].get_legend().get_texts()]
+    assert "fixes (simulated noise)" in texts and "truth" in texts and "measurements" not in texts
+    fig = plotting.plot_kf_2d(t, x_hat[:, :2], x_hat[:, :2], hist, labels={"truth": "truth (real)"})
+    texts = [text.get_text() for text in fig.axes[0].get_legend().get_texts()]
+    assert "truth (real)" in texts and "measurements" in texts
+    with pytest.raises(ValueError, match="unknown roles"):
+        plotting.plot_kf_1d(t, t, t, hist, labels={"meas": "x"})
+    with pytest.raises(ValueError, match="must be a string"):
+        plotting.plot_kf_1d(t, t, t, hist, labels={"truth": 3})
+
+
 def test_no_global_style_changes():
     before = dict(matplotlib.rcParams)
     fig, ax = plt.subplots()

@@ -22,8 +22,22 @@ def _history_component(hist, index: int, n: int):
     return x_hat, P_hat
 
 
+def _legend_labels(labels):
+    """The legend labels of a Kalman run's figure: the plain names, overridden by ``labels``."""
+    names = {"truth": "truth", "measurements": "measurements", "estimate": "estimate"}
+    if labels is None:
+        return names
+    unknown = set(labels) - set(names)
+    if unknown:
+        raise ValueError(f"labels has unknown roles {sorted(unknown)}; use {sorted(names)}")
+    for role, text in labels.items():
+        if not isinstance(text, str):
+            raise ValueError(f"labels[{role!r}] must be a string, got {text!r}")
+    return {**names, **labels}
+
+
 def plot_kf_1d(t, truth, ys, hist, *, index=0, n_sigma=3, name="position", unit="m",
-               figsize=(10, 6)):
+               figsize=(10, 6), labels=None):
     """Chapter 03: one state component of a Kalman run, and its error with the ±3σ band.
 
     Parameters
@@ -44,6 +58,10 @@ def plot_kf_1d(t, truth, ys, hist, *, index=0, n_sigma=3, name="position", unit=
         For the axis labels.
     figsize : tuple
         Figure size.
+    labels : dict, optional
+        Legend labels by role, ``{"truth": ..., "measurements": ..., "estimate": ...}``
+        (any subset); a lecture uses them to say which curve is real data and which is
+        simulated. Missing roles keep the plain names.
 
     Returns
     -------
@@ -59,10 +77,11 @@ def plot_kf_1d(t, truth, ys, hist, *, index=0, n_sigma=3, name="position", unit=
     sigma = np.sqrt(np.clip(P_hat[:, index, index], 0.0, None))
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=figsize, sharex=True)
     plot_sigma_band(ax1, t, est, sigma, n_sigma)
-    plot_truth(ax1, t, truth)
+    names = _legend_labels(labels)
+    plot_truth(ax1, t, truth, label=names["truth"])
     if ys is not None:
-        plot_measurements(ax1, t, ys)
-    plot_estimate(ax1, t, est)
+        plot_measurements(ax1, t, ys, label=names["measurements"])
+    plot_estimate(ax1, t, est, label=names["estimate"])
     ax1.set_ylabel(f"{name} [{unit}]")
     ax1.legend(loc="best", fontsize=8)
     plot_error_with_band(ax2, t, est - truth, sigma, n_sigma)
@@ -73,7 +92,7 @@ def plot_kf_1d(t, truth, ys, hist, *, index=0, n_sigma=3, name="position", unit=
 
 
 def plot_kf_2d(t, truth_xy, meas_xy, hist, *, indices=(0, 1), n_sigma=3, ellipse_every=10,
-               names=("east", "north"), figsize=(12, 5)):
+               names=("east", "north"), figsize=(12, 5), labels=None):
     """Chapter 03: a 2-D track (truth, measurements, estimate, covariance ellipses) and the
     error of each coordinate with its ±3σ band.
 
@@ -98,6 +117,10 @@ def plot_kf_2d(t, truth_xy, meas_xy, hist, *, indices=(0, 1), n_sigma=3, ellipse
         Axis names.
     figsize : tuple
         Figure size.
+    labels : dict, optional
+        Legend labels by role, ``{"truth": ..., "measurements": ..., "estimate": ...}``
+        (any subset), to say which track is real data and which is simulated. Missing
+        roles keep the plain names.
 
     Returns
     -------
@@ -122,9 +145,10 @@ def plot_kf_2d(t, truth_xy, meas_xy, hist, *, indices=(0, 1), n_sigma=3, ellipse
     ax_map = fig.add_subplot(grid[:, 0])
     ax_e1 = fig.add_subplot(grid[0, 1])
     ax_e2 = fig.add_subplot(grid[1, 1], sharex=ax_e1)
-    plot_truth(ax_map, truth_xy[:, 0], truth_xy[:, 1])
-    plot_measurements(ax_map, meas_xy[:, 0], meas_xy[:, 1])
-    plot_estimate(ax_map, x_hat[:, i], x_hat[:, j])
+    legend = _legend_labels(labels)
+    plot_truth(ax_map, truth_xy[:, 0], truth_xy[:, 1], label=legend["truth"])
+    plot_measurements(ax_map, meas_xy[:, 0], meas_xy[:, 1], label=legend["measurements"])
+    plot_estimate(ax_map, x_hat[:, i], x_hat[:, j], label=legend["estimate"])
     if ellipse_every:
         block = np.ix_([i, j], [i, j])
         for k in range(0, n, ellipse_every):
