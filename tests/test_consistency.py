@@ -130,7 +130,197 @@ def test_scaled_config():
 def test_sensitivity_row(cruise):
     (row,) = C.sensitivity(cruise, [("reference", 1.0, 1.0)])
     assert row.ape_position < 0.2 and 3.0 < row.nees_pose < 12.0
-    assert row.verdict == "consistent"
+    assert row.nees_verdict == row.nis_verdict == "consistent"
+    assert row.verdict == "consistent (NEES and NIS)"
+    assert row.nis_band == pytest.approx(metrics.chi2_bounds(6, 293))
+    # the NEES band counts correlated steps by their correlation time: wider than 293 white values
+    white = metrics.chi2_bounds(6, 293)
+    assert row.nees_band[0] < white[0] and row.nees_band[1] > white[1]
+
+
+def test_sensitivity_verdict_uses_the_nees_too(cruise):
+    """Q × 0.01: the NIS passes but the pose NEES (12) is far above its band; the verdict says so."""
+    (row,) = C.sensitivity(cruise, [("Q x 0.01", 0.01, 1.0)])
+    assert row.nis_verdict == "consistent" and row.nees_verdict == "overconfident"
+    assert row.verdict == "overconfident (NEES)"
+
+
+@pytest.mark.parametrize("nees, nis, expected", [
+    ("consistent", "consistent", "consistent (NEES and NIS)"),
+    ("overconfident", "overconfident", "overconfident (NEES and NIS)"),
+    ("overconfident", "consistent", "overconfident (NEES)"),
+    ("consistent", "underconfident", "underconfident (NIS)"),
+    ("underconfident", "overconfident", "underconfident (NEES), overconfident (NIS)"),
+])
+def test_combined_verdict(nees, nis, expected):
+    assert C.combined_verdict(nees, nis) == expected
+
+
+def test_combined_verdict_rejects_unknown_words():
+    with pytest.raises(ValueError, match="verdict"):
+        C.combined_verdict("fine", "consistent")
+
+
+# ---------------------------------------------------------------------------------------
+# the band of a time (and run) average, checked by simulation with a consistent linear KF
+# ---------------------------------------------------------------------------------------
+
+def _cv_kf_nees(seed, n_steps=300, r_scale=1.0):
+    """NEES (4 dof) of a correctly modelled 2-D CV Kalman filter on its own simulated data.
+
+    The prior at step 0 is drawn from the prior covariance, so the NEES is χ²(4) at every
+    step; successive values are strongly correlated (the error is carried from step to step).
+    ``r_scale`` scales the R the filter assumes (1: correct).
+    """
+    from kalman_course.data import cv_target
+    from kalman_course.filters import kf
+    sc = cv_target(n_steps, 0.1, 0.5, 1.0, seed)
+    rng = np.random.default_rng(seed + 10_000)
+    D = np.diag([1.0, 1.0, 0.25, 0.25])
+    x0 = sc.F @ sc.x0 + np.sqrt(np.diag(D)) * rng.standard_normal(4)
+    h = kf.run_kf(x0, sc.Q + D, sc.F, sc.Q, sc.H, r_scale * sc.R, sc.z)
+    return metrics.nees(h.x_hat - sc.x, h.P_hat)
+
+
+def test_correlation_time_of_an_ar1_sequence():
+    # AR(1) with φ = 0.8: τ = (1 + φ) / (1 − φ) = 9
+    rng = np.random.default_rng(4)
+    x = np.empty(40_000)
+    x[0] = 0.0
+    e = rng.standard_normal(x.size)
+    for k in range(1, x.size):
+        x[k] = 0.8 * x[k - 1] + e[k]
+    assert stats.correlation_time(x) == pytest.approx(9.0, rel=0.15)
+    assert stats.correlation_time(rng.standard_normal(5000)) == pytest.approx(1.0, abs=0.15)
+
+
+def test_average_band_of_an_uncorrelated_record_is_the_chi2_band():
+    # alternating values: ρ_1 = −1, so τ = 1 and the band is that of 2 × 100 independent values
+    values = np.tile([1.0, 11.0], (2, 50))
+    band = stats.average_band(values, 6)
+    assert band.correlation_time == 1.0 and band.n_effective == 200.0
+    assert (band.lo, band.hi) == pytest.approx(metrics.chi2_bounds(6, 200), rel=1e-10)
+    assert band.mean == 6.0 and band.verdict == "consistent"
+
+
+@pytest.mark.parametrize("n_runs, n_trials", [(1, 150), (3, 80)])
+def test_average_band_covers_a_consistent_kf(n_runs, n_trials):
+    """Coverage of the 95 % band, measured over independent trials of a consistent filter.
+
+    The band of n_runs · K independent values (chi2_bounds) treats the correlated steps as
+    independent and covers far too rarely; the correlation-time band covers about 90–95 %.
+    """
+    inside = inside_white = 0
+    for trial in range(n_trials):
+        record = np.array([_cv_kf_nees(1000 * trial + i) for i in range(n_runs)])
+        band = stats.average_band(record, 4)
+        inside += band.lo <= band.mean <= band.hi
+        lo, hi = metrics.chi2_bounds(4, record.size)
+        inside_white += lo <= band.mean <= hi
+    assert 0.86 <= inside / n_trials <= 0.99, inside / n_trials
+    assert inside_white / n_trials < 0.6, inside_white / n_trials
+
+
+def test_average_band_sees_an_overconfident_kf():
+    # the filter assumes R / 9 (σ / 3): its NEES is far above the band on every seed
+    for seed in range(3):
+        assert stats.average_band(_cv_kf_nees(seed, r_scale=1 / 9), 4).verdict == "overconfident"
+
+
+@pytest.mark.parametrize("values, dof, match", [
+    ([[1.0, np.nan]], 6, "finite"), (np.ones((2, 2, 2)), 6, "shape"), ([1.0, 2.0], 0, "dof"),
+    (["a"], 6, "values"),
+])
+def test_average_band_names_the_bad_argument(values, dof, match):
+    with pytest.raises(ValueError, match=match):
+        stats.average_band(values, dof)
+
+
+# ---------------------------------------------------------------------------------------
+# whiteness of the innovations
+# ---------------------------------------------------------------------------------------
+
+def _innovations(seed, phi=0.0, n=300):
+    """n innovations of 3 components with a fixed non-diagonal S; AR(1) with φ in time."""
+    rng = np.random.default_rng(seed)
+    A = np.array([[2.0, 0.0, 0.0], [0.5, 1.0, 0.0], [0.1, -0.3, 0.5]])
+    S = np.broadcast_to(A @ A.T, (n, 3, 3))
+    w = rng.standard_normal((n, 3))
+    u = np.empty_like(w)
+    u[0] = w[0]
+    for k in range(1, n):
+        u[k] = phi * u[k - 1] + np.sqrt(1 - phi ** 2) * w[k]
+    return u @ A.T, S
+
+
+def test_whiteness_passes_white_innovations_on_most_seeds():
+    passed = [stats.innovation_whiteness(*_innovations(seed), max_lag=8).white for seed in range(40)]
+    assert 33 <= sum(passed) <= 40           # 38 expected at 95 %
+    w = stats.innovation_whiteness(*_innovations(0), max_lag=8)
+    assert w.autocorrelation.shape == (3, 8) and list(w.lags) == list(range(1, 9))
+    assert w.band == pytest.approx(1.959964 / np.sqrt(300), rel=1e-5)
+    assert w.threshold == pytest.approx(metrics.chi2_ppf(0.95, 24))
+
+
+def test_whiteness_fails_coloured_innovations():
+    for seed in range(5):
+        w = stats.innovation_whiteness(*_innovations(seed, phi=0.5), max_lag=8)
+        assert not w.white and w.statistic > 3 * w.threshold
+        assert np.all(w.autocorrelation[:, 0] > w.band)          # lag 1 ≈ φ on every component
+
+
+def test_whiteness_whitens_with_s():
+    # whitening by S makes the test blind to the units: ν scaled by 3 with S scaled by 9 is the
+    # same whitened sequence
+    nu, S = _innovations(1)
+    w = stats.innovation_whiteness(nu, S, max_lag=5)
+    scaled = stats.innovation_whiteness(3.0 * nu, 9.0 * S, max_lag=5)
+    np.testing.assert_allclose(scaled.autocorrelation, w.autocorrelation, atol=1e-12)
+
+
+@pytest.mark.parametrize("call, match", [
+    (lambda nu, S: stats.innovation_whiteness(nu[:, :2], S), "innovation"),
+    (lambda nu, S: stats.innovation_whiteness(nu, -S), "positive definite"),
+    (lambda nu, S: stats.innovation_whiteness(nu, S, max_lag=300), "max_lag"),
+    (lambda nu, S: stats.innovation_whiteness(nu, S, max_lag=0), "max_lag"),
+    (lambda nu, S: stats.innovation_whiteness(np.where(np.arange(300)[:, None] == 3, np.nan, nu), S), "finite"),
+])
+def test_whiteness_names_the_bad_argument(call, match):
+    nu, S = _innovations(0)
+    with pytest.raises(ValueError, match=match):
+        call(nu, S)
+
+
+def test_whiteness_runs_on_kitti(cruise):
+    """Real IMU and truth, simulated lidar errors: white ones pass, Gauss–Markov (τ 1 s) ones fail."""
+    white = C.whiteness_runs(cruise, [0, 1, 2])
+    coloured = C.whiteness_runs(cruise, [0, 1, 2], time_constant=1.0)
+    assert white.n_white >= 2 and coloured.n_white == 0
+    assert np.all(coloured.statistics > 10 * coloured.tests[0].threshold)
+    assert coloured.nees_verdicts == ("overconfident",) * 3
+    # the mean NIS points the wrong way: coloured errors the filter averages as white look *smaller*
+    assert np.all(coloured.nis < 6.0) and "underconfident" in coloured.nis_verdicts
+    assert white.nis_verdicts.count("consistent") >= 2 and white.nis.shape == (3,)
+    again = C.whiteness_runs(cruise, [0, 1, 2])
+    np.testing.assert_array_equal(again.statistics, white.statistics)
+    with pytest.raises(ValueError, match="seed"):
+        C.whiteness_runs(cruise, [])
+
+
+def test_plot_whiteness(cruise):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from kalman_course.plotting.consistency import plot_whiteness
+    cases = {"white": C.whiteness_runs(cruise, [0, 1]), "τ 1 s": C.whiteness_runs(cruise, [0, 1], 1.0)}
+    fig = plot_whiteness(cases)
+    left, right = fig.axes
+    assert len(right.lines) == 3                          # two cases and the threshold
+    labels = right.get_legend_handles_labels()[1]
+    assert labels[:2] == ["white: 2 of 2 white", "τ 1 s: 0 of 2 white"]
+    plt.close(fig)
+    with pytest.raises(ValueError):
+        plot_whiteness({})
 
 
 def test_update_forms():

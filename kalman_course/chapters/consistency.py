@@ -7,7 +7,10 @@ on them and on :mod:`kalman_course.filters.eskf`:
 
 - :func:`monte_carlo` — the ESKF on the synthetic IMU trajectory (exact truth), n seeded
   runs, 15-state NEES and 6-dof NIS per step;
-- :func:`scaled_config` and :func:`sensitivity` — the KITTI ESKF over several noise settings;
+- :func:`scaled_config` and :func:`sensitivity` — the KITTI ESKF over several noise settings,
+  each judged by its pose NEES (against the truth, time-correlated band) and its NIS;
+- :func:`whiteness_runs` — the innovation whiteness test on the KITTI ESKF over seeds, with
+  white or Gauss–Markov (coloured) simulated lidar errors;
 - :func:`inject_outliers` and :func:`run_gated` — chi-square innovation gating against
   seeded map-matching failures in the lidar poses;
 - :func:`simple_update`, :func:`joseph_update`, :func:`symmetrise`,
@@ -25,16 +28,18 @@ import numpy as np
 
 from kalman_course.core import linalg, so3
 from kalman_course.core.observations import PoseObservations
-from kalman_course.data import imu_trajectory, simulate_lidar_poses
+from kalman_course.data import GaussMarkovErrors, WhiteErrors, imu_trajectory, simulate_lidar_poses
 from kalman_course.evaluation import metrics
-from kalman_course.evaluation.consistency import gate_threshold, verdict
+from kalman_course.evaluation.consistency import (VERDICTS, Whiteness, average_band, gate_threshold,
+                                                  innovation_whiteness, verdict)
 from kalman_course.evaluation.pose import evaluate
 from kalman_course.filters import eskf
 from kalman_course.filters.eskf_config import EskfConfig, load_config
 
 __all__ = [
     "MonteCarloResult", "monte_carlo", "full_state_error",
-    "scaled_config", "SensitivityRow", "sensitivity",
+    "scaled_config", "SensitivityRow", "sensitivity", "combined_verdict",
+    "WhitenessRuns", "whiteness_runs",
     "inject_outliers", "GatedRun", "run_gated",
     "simple_update", "joseph_update", "symmetrise", "covariance_health", "roundoff_experiment",
 ]
@@ -190,7 +195,20 @@ class SensitivityRow:
     nis : float
         Mean 6-dof NIS.
     verdict : str
-        :func:`verdict` of the NIS record.
+        Both tests together, :func:`combined_verdict` of ``nees_verdict`` and
+        ``nis_verdict``: "consistent (NEES and NIS)" only when both pass, otherwise each
+        failure named with its statistic, e.g. "overconfident (NEES)".
+    nees_band : (float, float)
+        95 % interval of the time-averaged pose NEES,
+        :func:`~kalman_course.evaluation.consistency.average_band` (its samples are
+        correlated in time; the interval counts them by their correlation time).
+    nees_verdict : str
+        The mean pose NEES against ``nees_band``.
+    nis_band : (float, float)
+        95 % interval of the mean NIS for white innovations, ``chi2_bounds(6, K)`` (a
+        consistent filter's innovations are white).
+    nis_verdict : str
+        :func:`~kalman_course.evaluation.consistency.verdict` of the NIS record.
     """
 
     label: str
@@ -202,6 +220,35 @@ class SensitivityRow:
     nees_share: float
     nis: float
     verdict: str
+    nees_band: tuple
+    nees_verdict: str
+    nis_band: tuple
+    nis_verdict: str
+
+
+def combined_verdict(nees_verdict: str, nis_verdict: str) -> str:
+    """One verdict from the NEES test and the NIS test, saying which statistic failed.
+
+    Parameters
+    ----------
+    nees_verdict, nis_verdict : str
+        Each one of :data:`~kalman_course.evaluation.consistency.VERDICTS`.
+
+    Returns
+    -------
+    str
+        "consistent (NEES and NIS)" when both are consistent; "overconfident (NEES and
+        NIS)" (or underconfident) when both fail the same way; otherwise the failures
+        only, joined by ", ", e.g. "overconfident (NEES)" or
+        "underconfident (NEES), overconfident (NIS)".
+    """
+    for v in (nees_verdict, nis_verdict):
+        if v not in VERDICTS:
+            raise ValueError(f"a verdict must be one of {VERDICTS}, got {v!r}")
+    if nees_verdict == nis_verdict:
+        return f"{nees_verdict} (NEES and NIS)"
+    return ", ".join(f"{v} ({name})" for v, name in ((nees_verdict, "NEES"), (nis_verdict, "NIS"))
+                     if v != "consistent")
 
 
 def sensitivity(excerpt, settings, config="kitti_lidar", lidar=None) -> list[SensitivityRow]:
@@ -215,6 +262,12 @@ def sensitivity(excerpt, settings, config="kitti_lidar", lidar=None) -> list[Sen
         The configuration the factors scale.
     lidar : LidarData, optional
         Pose observations (default: the excerpt's shipped draw).
+
+    Returns
+    -------
+    list of SensitivityRow
+        One per setting. The NEES uses the excerpt's ground truth (KITTI's, with its own
+        small errors), which the filter never sees.
     """
     lidar = excerpt.lidar if lidar is None else lidar
     k0, s0 = excerpt.initial_state()
@@ -224,10 +277,111 @@ def sensitivity(excerpt, settings, config="kitti_lidar", lidar=None) -> list[Sen
         res = eskf.run(excerpt.imu, s0, scaled_config(config, qf, rf), excerpt.gravity, lidar=lidar, start=k0)
         m = evaluate(res.t, res.position, res.rotation, excerpt.truth, res.P)
         nis = metrics.normalised_squared(np.array(res.innovation), np.array(res.S), "innovation", "S")
+        band = average_band(m["nees"], 6)
+        nis_v = verdict(nis, 6)
         rows.append(SensitivityRow(label, float(qf), float(rf), m["ape_position"], m["ape_attitude_deg"],
                                    m["nees_pose"], metrics.share_inside(m["nees"], lo, hi),
-                                   float(np.mean(nis)), verdict(nis, 6)))
+                                   float(np.mean(nis)), combined_verdict(band.verdict, nis_v),
+                                   (band.lo, band.hi), band.verdict, metrics.chi2_bounds(6, len(nis)), nis_v))
     return rows
+
+
+# ---------------------------------------------------------------------------------------
+# Whiteness of the innovations over seeds
+# ---------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class WhitenessRuns:
+    """Output of :func:`whiteness_runs`: one whiteness test (and, for comparison, one NEES) per seed.
+
+    Attributes
+    ----------
+    seeds : tuple of int
+        The lidar-noise seeds.
+    time_constant : float or None
+        τ of the simulated Gauss–Markov lidar errors, s; None for white errors.
+    tests : tuple of Whiteness
+        :func:`~kalman_course.evaluation.consistency.innovation_whiteness` of each run.
+    nees_pose : numpy.ndarray, shape (n_seeds,)
+        Mean pose NEES of each run against the excerpt's ground truth.
+    nees_verdicts : tuple of str
+        Each run's mean pose NEES against its
+        :func:`~kalman_course.evaluation.consistency.average_band`.
+    nis : numpy.ndarray, shape (n_seeds,)
+        Mean 6-dof NIS of each run.
+    nis_verdicts : tuple of str
+        Each run's NIS record, :func:`~kalman_course.evaluation.consistency.verdict` (the
+        band of white innovations).
+    """
+
+    seeds: tuple
+    time_constant: float | None
+    tests: tuple
+    nees_pose: np.ndarray
+    nees_verdicts: tuple
+    nis: np.ndarray
+    nis_verdicts: tuple
+
+    @property
+    def n_white(self) -> int:
+        """How many runs pass the whiteness test."""
+        return sum(w.white for w in self.tests)
+
+    @property
+    def statistics(self) -> np.ndarray:
+        """Ljung–Box statistic of each run, shape (n_seeds,)."""
+        return np.array([w.statistic for w in self.tests])
+
+
+def whiteness_runs(excerpt, seeds, time_constant: float | None = None, config="kitti_lidar", *,
+                   max_lag: int = 10, confidence: float = 0.95) -> WhitenessRuns:
+    """The ESKF on a KITTI excerpt with freshly simulated lidar poses, its innovations tested for whiteness.
+
+    For each seed the lidar poses are the excerpt's true poses plus simulated errors of
+    σ 0.2 m, 0.3° (the filter's R): white (``time_constant`` None) or first-order
+    Gauss–Markov with time constant τ (:class:`~kalman_course.data.GaussMarkovErrors`),
+    which the filter does not model. The IMU and the truth are KITTI's; the filter runs with
+    ``config`` unchanged and never sees the truth. Its 6-dof innovations go to
+    :func:`~kalman_course.evaluation.consistency.innovation_whiteness`.
+
+    Parameters
+    ----------
+    excerpt : KittiExcerpt
+    seeds : iterable of int
+        One run per seed (``simulate_lidar_poses(excerpt.truth, seed, errors=...)``).
+    time_constant : float or None
+        τ of the lidar errors, s, or None for white errors.
+    config : EskfConfig or str
+    max_lag : int
+        Largest lag tested, in lidar updates.
+    confidence : float
+        Confidence of the whiteness test.
+
+    Returns
+    -------
+    WhitenessRuns
+    """
+    seeds = tuple(int(s) for s in seeds)
+    if not seeds:
+        raise ValueError("seeds must name at least one seed")
+    errors = (WhiteErrors(0.2, 0.3) if time_constant is None
+              else GaussMarkovErrors(0.2, 0.3, float(time_constant)))
+    cfg = config if isinstance(config, EskfConfig) else load_config(config)
+    k0, s0 = excerpt.initial_state()
+    tests, nees, verdicts, nis_means, nis_verdicts = [], [], [], [], []
+    for seed in seeds:
+        lidar = simulate_lidar_poses(excerpt.truth, seed, errors=errors)
+        res = eskf.run(excerpt.imu, s0, cfg, excerpt.gravity, lidar=lidar, start=k0)
+        innovation, S = np.array(res.innovation), np.array(res.S)
+        tests.append(innovation_whiteness(innovation, S, max_lag, confidence))
+        m = evaluate(res.t, res.position, res.rotation, excerpt.truth, res.P)
+        nees.append(m["nees_pose"])
+        verdicts.append(average_band(m["nees"], 6).verdict)
+        nis = metrics.normalised_squared(innovation, S, "innovation", "S")
+        nis_means.append(float(np.mean(nis)))
+        nis_verdicts.append(verdict(nis, 6))
+    return WhitenessRuns(seeds, None if time_constant is None else float(time_constant), tuple(tests),
+                         np.array(nees), tuple(verdicts), np.array(nis_means), tuple(nis_verdicts))
 
 
 # ---------------------------------------------------------------------------------------

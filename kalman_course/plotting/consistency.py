@@ -15,7 +15,7 @@ from kalman_course.evaluation.metrics import chi2_bounds
 from kalman_course.plotting.vocabulary import (COLORS, CURVE_COLORS, _bounds, _vector, plot_consistency_curves,
                                                plot_curves, shade_spans)
 
-__all__ = ["plot_monte_carlo", "plot_sensitivity", "plot_gating"]
+__all__ = ["plot_monte_carlo", "plot_sensitivity", "plot_gating", "plot_whiteness"]
 
 #: Line styles of the compared experiments, in order (the first solid).
 _LINESTYLES = ("-", (0, (5, 3)), ":", "-.")
@@ -161,5 +161,60 @@ def plot_gating(errors, t_nis, nis, threshold, outlier_times=(), *, colors=(COLO
     ax2.axhline(threshold, color=COLORS["truth"], lw=0.8, label=f"gate {threshold:.2f}")
     ax2.set(xlabel="t [s]", ylabel="NIS")
     ax2.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def plot_whiteness(cases, *, colors=None, figsize=(11, 3.8)):
+    """Innovation autocorrelation of one run per case (left), the portmanteau test over seeds (right).
+
+    Parameters
+    ----------
+    cases : mapping of str to WhitenessRuns
+        Legend label -> :class:`~kalman_course.chapters.consistency.WhitenessRuns` (uses
+        ``.tests``, each with ``lags``, ``autocorrelation`` (m, L), ``band``,
+        ``statistic`` and ``threshold``; and ``.seeds``). All share the lags and the
+        threshold. Left: the first run's autocorrelation of every whitened component
+        (thin) and their mean (thick), with the ±band of a white sequence. Right: each
+        run's Ljung–Box statistic against its χ² threshold, log scale.
+    colors : sequence of colour, optional
+        One per case (default the course's comparison colours).
+    figsize : tuple
+        Figure size.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    if not hasattr(cases, "items") or len(cases) == 0:
+        raise ValueError("cases must be a non-empty mapping of label -> WhitenessRuns")
+    colors = CURVE_COLORS if colors is None else colors
+    first = next(iter(cases.values())).tests[0]
+    for label, runs in cases.items():
+        if len(runs.tests) == 0 or not np.array_equal(runs.tests[0].lags, first.lags):
+            raise ValueError(f"cases[{label!r}] must have tests with the same lags as the first case")
+    fig, (left, right) = plt.subplots(1, 2, figsize=figsize)
+    band = max(float(runs.tests[0].band) for runs in cases.values())
+    left.axhspan(-band, band, color=COLORS["band"], alpha=0.5, lw=0, label="±1.96/√N (white)")
+    left.axhline(0.0, color="0.4", lw=0.8)
+    for k, (label, runs) in enumerate(cases.items()):
+        w, c = runs.tests[0], colors[k % len(colors)]
+        for row in w.autocorrelation:
+            left.plot(w.lags, row, "-", color=c, lw=0.6, alpha=0.5)
+        left.plot(w.lags, w.autocorrelation.mean(axis=0), "o-", color=c, lw=1.8,
+                  label=f"{label}: seed {runs.seeds[0]}, mean of the {len(w.autocorrelation)} components")
+    left.set(xlabel="lag [updates]", ylabel="autocorrelation of whitened innovations",
+             title="one run per case")
+    left.legend(fontsize=8)
+    for k, (label, runs) in enumerate(cases.items()):
+        right.plot(np.arange(len(runs.tests)), runs.statistics, "o", color=colors[k % len(colors)],
+                   label=f"{label}: {runs.n_white} of {len(runs.tests)} white")
+    right.axhline(first.threshold, color=COLORS["truth"], lw=0.8,
+                  label=f"95 % threshold χ²({first.autocorrelation.size}) = {first.threshold:.1f}")
+    right.set(yscale="log", xlabel="run (seed index)", ylabel="Ljung–Box statistic",
+              title="portmanteau test over seeds")
+    right.legend(fontsize=8)
     fig.tight_layout()
     return fig
