@@ -227,3 +227,86 @@ def test_prediction_error_grows_with_the_horizon_and_short_horizons_are_good():
     assert t.shape == (5,) and truth.shape == (5, 2)
     for path in paths.values():
         np.testing.assert_allclose(path[0], truth[0], atol=0.05)   # every model starts on the truth
+
+
+def test_causal_states_use_nothing_after_the_start_time():
+    from kalman_course.chapters import motion
+    from kalman_course.data import load_kitti
+
+    ex = load_kitti("turns")
+    t = np.array([320.0, 330.05, 340.0])
+    _, ca = motion.kitti_model_states("turns", "ca", t, causal=True)
+    _, ctra = motion.kitti_model_states("turns", "ctra", t, causal=True)
+    v_now, v_before = ex.truth.interpolate(t).velocity[:, :2], ex.truth.interpolate(t - 1.0).velocity[:, :2]
+    np.testing.assert_allclose(ca[:, 4:6], v_now - v_before, rtol=1e-12, atol=1e-12)   # backward, 1 s wide
+    last = np.searchsorted(ex.imu.t, t, side="right") - 1
+    assert np.all(ex.imu.t[last] <= t)
+    np.testing.assert_allclose(ctra[:, 4], ex.imu.angular_rate[last, 2])
+    # the centred state differs: it reads the velocity half a second ahead
+    _, ca_centred = motion.kitti_model_states("turns", "ca", t, causal=False)
+    assert not np.allclose(ca_centred[:, 4:6], ca[:, 4:6])
+    np.testing.assert_allclose(ca_centred[:, :4], ca[:, :4])
+
+
+def test_the_future_flatters_the_acceleration_models_on_kitti():
+    from kalman_course.chapters import motion
+
+    kw = dict(horizons=(0.5, 1.0), models=("ca", "ctra"))
+    causal, centred = motion.horizon_errors("turns", causal=True, **kw), motion.horizon_errors("turns", causal=False, **kw)
+    assert causal.n_starts == centred.n_starts
+    assert np.all(causal.rms > centred.rms)
+
+
+@pytest.mark.parametrize("model", ["ctrv", "ctra"])
+def test_noise_inside_step_is_the_flow_of_the_noisy_ode(model):
+    from scipy.integrate import solve_ivp
+
+    from kalman_course.chapters import motion
+
+    def ode(t, s, w):
+        ds = [s[2] * np.cos(s[3]), s[2] * np.sin(s[3]), w[0], s[4], w[1]]
+        if model == "ctra":
+            ds[2] = s[5]
+            ds.append(w[0])
+        return ds
+
+    rng = np.random.default_rng(21)
+    for omega in (None, 0.0):
+        x = _random_state(model, rng, omega)
+        for T in (0.1, 1.0):
+            w = rng.normal(size=(3, 2)) * [2.0, 0.5]
+            got = motion.noise_inside_step(model, x, T, w)
+            assert got.shape == (3, len(x))
+            for wi, gi in zip(w, got):
+                sol = solve_ivp(ode, (0.0, T), x, args=(wi,), rtol=1e-12, atol=1e-12)
+                np.testing.assert_allclose(gi, sol.y[:, -1], rtol=1e-9, atol=1e-9)
+            # zero noise: the course's exact noise-free step
+            np.testing.assert_allclose(motion.noise_inside_step(model, x, T, [0.0, 0.0]),
+                                       symbolic.motion_step(model, x, T), rtol=1e-10, atol=1e-10)
+
+
+def test_noise_inside_step_differs_from_the_linear_noise_model_where_the_yaw_noise_moves_the_position():
+    from kalman_course.chapters import motion
+
+    x = np.array([0.0, 0.0, 15.0, 0.0, 0.0])
+    end = motion.noise_inside_step("ctrv", x, 1.0, [0.0, 0.5])
+    linear = symbolic.motion_step("ctrv", x, 1.0, [0.0, 0.5])
+    assert linear[1] == 0.0                      # B does not move the position sideways
+    assert abs(end[1] - 15.0 * 0.5 / 6) < 0.01   # v nu T^3 / 6, to leading order
+    np.testing.assert_allclose(end[2:], linear[2:], atol=1e-12)   # speed, heading, turn rate agree
+
+
+def test_noise_covariance_check_holds_for_short_steps_and_not_for_long_ones():
+    from kalman_course.chapters import motion
+
+    x = np.array([1.0, 2.0, 15.0, 0.4, 0.3])
+    short = motion.noise_covariance_check("ctrv", x, 0.1, [2.0, 0.5], seeds=range(3), n_samples=20_000)
+    long = motion.noise_covariance_check("ctrv", x, 1.0, [2.0, 0.5], seeds=range(3), n_samples=20_000)
+    assert short.ratio.shape == (3,) and np.all(np.abs(short.ratio - 1) < 0.05)
+    assert np.all(long.ratio > 2.0)
+    assert abs(np.median(long.ratio) / long.predicted_ratio - 1) < 0.05
+    assert np.all(long.cross_track_std > 1.0) and np.all(short.cross_track_std < 0.01)
+    with pytest.raises(ValueError, match="model must be"):
+        motion.noise_covariance_check("ca", np.zeros(6), 0.1, [1.0, 1.0])
+    with pytest.raises(ValueError, match="w must have shape"):
+        motion.noise_inside_step("ctrv", x, 0.1, [1.0, 2.0, 3.0])
