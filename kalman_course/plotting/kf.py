@@ -7,7 +7,7 @@ import numpy as np
 from kalman_course.plotting.vocabulary import (_vector, plot_covariance_ellipse, plot_error_with_band,
                                                plot_estimate, plot_measurements, plot_sigma_band, plot_truth)
 
-__all__ = ["plot_kf_1d", "plot_kf_2d"]
+__all__ = ["plot_kf_1d", "plot_kf_2d", "plot_innovations"]
 
 
 def _history_component(hist, index: int, n: int):
@@ -163,5 +163,58 @@ def plot_kf_2d(t, truth_xy, meas_xy, hist, *, indices=(0, 1), n_sigma=3, ellipse
     # above the error panels, not inside: the band fills them from the first seconds on
     ax_e1.legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=2, fontsize=8, frameon=False)
     ax_e2.set_xlabel("t [s]")
+    fig.tight_layout()
+    return fig
+
+
+def plot_innovations(t, cases, *, n_sigma=3, figsize=(12, 5)):
+    """Chapter 03: a filter's innovations (residuals) against their ±3√S band, and their autocorrelation.
+
+    Parameters
+    ----------
+    t : array_like, shape (N,)
+        Times of the innovations, s.
+    cases : mapping of str to (innovation, S, whiteness)
+        Label -> scalar innovations (N,), their variances S (N,), and the
+        :class:`~kalman_course.evaluation.consistency.Whiteness` of the same sequence.
+        One row of the left column per case; the right panel overlays the autocorrelations.
+    n_sigma : float
+        Width of the band, in standard deviations √S.
+    figsize : tuple
+        Figure size.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    from kalman_course.plotting.vocabulary import COLORS, CURVE_COLORS
+
+    t = _vector(t, "t")
+    if not hasattr(cases, "items") or len(cases) == 0:
+        raise ValueError("cases must be a non-empty mapping of label -> (innovation, S, whiteness)")
+    fig = plt.figure(figsize=figsize)
+    grid = fig.add_gridspec(len(cases), 2, width_ratios=(2.2, 1.0))
+    ax_acf = fig.add_subplot(grid[:, 1])
+    band = 0.0
+    for row, (label, (nu, S, whiteness)) in enumerate(cases.items()):
+        nu, S = _vector(nu, f"cases[{label!r}] innovation"), _vector(S, f"cases[{label!r}] S")
+        if len(nu) != len(t) or len(S) != len(t):
+            raise ValueError(f"cases[{label!r}]: innovation and S must have {len(t)} values, as t")
+        color = CURVE_COLORS[row % len(CURVE_COLORS)]
+        ax = fig.add_subplot(grid[row, 0])
+        plot_error_with_band(ax, t, nu, np.sqrt(S), n_sigma, label="innovation y − G x̌", color=color)
+        ax.set(ylabel="innovation [m]", title=label)
+        ax.legend(loc="upper right", fontsize=8)
+        if row == len(cases) - 1:
+            ax.set_xlabel("t [s]")
+        ax_acf.plot(whiteness.lags, whiteness.autocorrelation[0], "o-", color=color,
+                    label=f"{label}: {'white' if whiteness.white else 'not white'}")
+        band = max(band, whiteness.band)
+    ax_acf.axhspan(-band, band, color=COLORS["band"], alpha=0.5, lw=0, label="±1.96/√N (white)")
+    ax_acf.axhline(0.0, color="0.4", lw=0.8)
+    ax_acf.set(xlabel="lag [steps]", ylabel="autocorrelation of ν/√S", title="one run")
+    ax_acf.legend(fontsize=8)
     fig.tight_layout()
     return fig
