@@ -190,7 +190,7 @@ def _third_party_imports(package: Path) -> dict[str, set[str]]:
 def test_the_package_imports_only_its_declared_dependencies():
     # a learner's `pip install -e .` has these and nothing more (SciPy and FilterPy are test oracles)
     runtime = {"numpy", "sympy", "matplotlib", "yaml", "nbformat", "nbclient", "jupyter_client", "IPython",
-               "jupyter_server_mathjax", "pytest", "zmq", "ipykernel",
+               "jupyter_server_mathjax", "pytest", "zmq", "ipykernel", "ipywidgets",
                "nbconvert"}  # installed with jupyterlab (its server exports notebooks)
     # the benchmark report compares with FilterPy: an instructor's tool, documented as needing .[dev]
     dev_only = {"filterpy": {"bench.py"}}

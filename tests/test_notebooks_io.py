@@ -40,6 +40,17 @@ def test_normalise_is_deterministic_and_idempotent():
     assert once == notebook_text(normalise(nbformat.reads(once, as_version=4)))
 
 
+def test_normalise_drops_live_widget_views_and_keeps_figures():
+    cell = new_code_cell("explorer")
+    cell.execution_count = 3
+    view = {"application/vnd.jupyter.widget-view+json": {"model_id": "5f0c9e", "version_major": 2},
+            "text/plain": "VBox(children=(FloatLogSlider(value=0.5),))"}
+    figure = {"image/png": "iVBORw0KGgo=", "text/plain": "<Figure>"}
+    cell.outputs = [new_output("display_data", data=view), new_output("display_data", data=figure)]
+    nb = normalise(new_notebook(cells=[cell]))
+    assert [o["data"] for o in nb.cells[0].outputs] == [figure]
+
+
 @pytest.mark.parametrize("path", sorted((ROOT / "notebooks").glob("*.ipynb")) + sorted((ROOT / "solutions").glob("*.ipynb"))
                          + sorted((ROOT / "exercises").glob("*.ipynb")), ids=lambda p: f"{p.parent.name}/{p.stem}")
 def test_saving_an_unchanged_notebook_changes_nothing(path):

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from kalman_course.plotting.vocabulary import (_vector, plot_covariance_ellipse, plot_error_with_band,
+from kalman_course.plotting.vocabulary import (_vector, plot_consistency, plot_covariance_ellipse, plot_error_with_band,
                                                plot_estimate, plot_measurements, plot_sigma_band, plot_truth)
 
-__all__ = ["plot_kf_1d", "plot_kf_2d", "plot_innovations"]
+__all__ = ["plot_kf_1d", "plot_kf_2d", "plot_innovations", "plot_tuning_dashboard"]
 
 
 def _history_component(hist, index: int, n: int):
@@ -216,5 +216,69 @@ def plot_innovations(t, cases, *, n_sigma=3, figsize=(12, 5)):
     ax_acf.axhline(0.0, color="0.4", lw=0.8)
     ax_acf.set(xlabel="lag [steps]", ylabel="autocorrelation of ν/√S", title="one run")
     ax_acf.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def plot_tuning_dashboard(t, truth, estimate, sigma, measurements, consistency, *, n_sigma=3, title=None,
+                          name="position", unit="m", labels=None, figsize=(11, 6.5)):
+    """Chapters 03 and 09: one filter setting at a glance (what a tuning slider redraws).
+
+    Top: one state component, its truth, the measurements and the estimate with its ±3σ
+    band. Below: each consistency statistic over time with its acceptance band.
+
+    Parameters
+    ----------
+    t : array_like, shape (N,)
+        Times, s.
+    truth, estimate, sigma : array_like, shape (N,)
+        True value, estimate and the filter's σ of the component.
+    measurements : array_like, shape (N,) or None
+        Measurements of the component (NaN where none), or None.
+    consistency : mapping of str to (values, lo, hi)
+        Label (e.g. "NEES averaged over 30 runs") -> statistic per step (N,) and its band.
+    n_sigma : float
+        Width of the estimate's band.
+    title : str, optional
+        Figure title (a verdict, say).
+    name, unit : str
+        For the first panel's axis label.
+    labels : dict, optional
+        Legend labels by role, as for :func:`plot_kf_1d` (e.g. to draw an error against a
+        zero "truth").
+    figsize : tuple
+        Figure size.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    legend = _legend_labels(labels)
+    t = _vector(t, "t")
+    n = len(t)
+    truth, estimate = _vector(truth, "truth", n=n), _vector(estimate, "estimate", n=n)
+    sigma = _vector(sigma, "sigma", n=n)
+    if not hasattr(consistency, "items") or len(consistency) == 0:
+        raise ValueError("consistency must be a non-empty mapping of label -> (values, lo, hi)")
+    fig, axes = plt.subplots(1 + len(consistency), 1, figsize=figsize, sharex=True,
+                             gridspec_kw={"height_ratios": [2.0] + [1.0] * len(consistency)})
+    top = axes[0]
+    plot_sigma_band(top, t, estimate, sigma, n_sigma)
+    plot_truth(top, t, truth, label=legend["truth"])
+    if measurements is not None:
+        plot_measurements(top, t, _vector(measurements, "measurements", allow_nan=True, n=n),
+                          label=legend["measurements"])
+    plot_estimate(top, t, estimate, label=legend["estimate"])
+    top.set_ylabel(f"{name} [{unit}]")
+    top.legend(loc="best", fontsize=8)
+    for ax, (label, (values, lo, hi)) in zip(axes[1:], consistency.items()):
+        plot_consistency(ax, t, values, lo, hi, label=label)
+        ax.set_yscale("log")
+        ax.legend(loc="upper right", fontsize=8)
+    axes[-1].set_xlabel("t [s]")
+    if title:
+        fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     return fig

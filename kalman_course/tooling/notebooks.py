@@ -86,10 +86,14 @@ def stable_cell_id(index: int, source: str) -> str:
     return f"c{index:02d}-{digest}"
 
 
+WIDGET_VIEW = "application/vnd.jupyter.widget-view+json"
+
+
 def normalise(nb):
     """Return a copy of ``nb`` without run-to-run noise.
 
-    Removes per-cell execution timing, the kernel's Python patch version and widget state,
+    Removes per-cell execution timing, the kernel's Python patch version, widget state and
+    live widget views,
     gives every cell an id (kept when present), and renumbers execution counts so that
     they only depend on the cell order.
     """
@@ -109,7 +113,10 @@ def normalise(nb):
             cell["id"] = stable_cell_id(i, cell.source)
         seen.add(cell["id"])
         if cell.cell_type == "code":
-            cell.outputs = _coalesce_streams(cell.outputs)
+            # a live widget's view refers to a model in the kernel that ran it (a random id):
+            # outside that session it shows nothing, so it is not stored
+            cell.outputs = _coalesce_streams([out for out in cell.outputs
+                                              if WIDGET_VIEW not in out.get("data", {})])
             if cell.get("execution_count") is not None or cell.outputs:
                 count += 1
                 cell.execution_count = count
