@@ -1,8 +1,12 @@
-"""The numbers behind the course's intuition figures (chapters 03, 05 and 06).
+"""The numbers behind the course's intuition figures (chapters 01, 02, 03, 05 and 06).
 
 Each function here computes what one picture shows, with the filters of the layers below
 (no filter equation is written again here):
 
+- chapter 01: :func:`truncated_normal_moments`, the moments of a Gaussian prior cut off
+  by the ends of a grid;
+- chapter 02: :func:`information_trial`, one linear-Gaussian update repeated over runs
+  and seeds, scored against truths the estimator does not see (:class:`InformationTrial`);
 - chapter 03: :func:`kf_1d_table`, a scalar Kalman filter whose every number a learner
   can check by hand (:class:`KF1DTable`); :func:`scalar_gain`, the gain as a function of
   the prior and measurement variances; :func:`steady_state`, the covariance and gain a
@@ -34,7 +38,8 @@ from kalman_course.filters.ekf import iekf_update
 from kalman_course.filters.kf import innovation_covariance, kf_gain, kf_predict, kf_update, run_kf
 
 __all__ = ["KF1DTable", "kf_1d_table", "scalar_gain", "SteadyState", "steady_state", "RadarCloud",
-           "cross_range_covariance", "radar_cloud", "map_cost", "gauss_newton_cost", "cost_on_plane", "iekf_iterates"]
+           "cross_range_covariance", "radar_cloud", "map_cost", "gauss_newton_cost", "cost_on_plane", "iekf_iterates",
+           "truncated_normal_moments", "InformationTrial", "information_trial"]
 
 
 # --------------------------------------------------------------------------------------
@@ -502,3 +507,146 @@ def iekf_iterates(x_check, P_check, y, g: Callable, G: Callable, R, residual=Non
         if upd.converged:
             break
     return np.array(path)
+
+
+# --------------------------------------------------------------------------------------
+# chapter 01: a Gaussian prior cut off by the edges of a grid
+# --------------------------------------------------------------------------------------
+
+def truncated_normal_moments(mu, sigma, low, high) -> tuple[float, float]:
+    """Mean and standard deviation of N(mu, sigma²) restricted to [low, high].
+
+    The closed form of the truncated normal: with a = (low − mu)/sigma,
+    b = (high − mu)/sigma, φ the standard normal density and Z = Φ(b) − Φ(a),
+
+    mean = mu + sigma (φ(a) − φ(b)) / Z,
+    var  = sigma² [1 + (a φ(a) − b φ(b)) / Z − ((φ(a) − φ(b)) / Z)²].
+
+    Parameters
+    ----------
+    mu, sigma : float
+        Mean and standard deviation (> 0) of the untruncated Gaussian.
+    low, high : float
+        The interval kept, low < high.
+
+    Returns
+    -------
+    mean, std : float
+        The moments of the truncated density.
+    """
+    from math import erf, exp, pi, sqrt
+
+    mu, low, high = (float(as_vector([v], name, 1)[0]) for v, name in ((mu, "mu"), (low, "low"), (high, "high")))
+    sigma = as_scalar(sigma, "sigma")
+    if not low < high:
+        raise ValueError(f"low must be below high, got [{low}, {high}]")
+    a, b = (low - mu) / sigma, (high - mu) / sigma
+    phi = lambda t: exp(-0.5 * t * t) / sqrt(2 * pi)  # noqa: E731
+    Phi = lambda t: 0.5 * (1 + erf(t / sqrt(2)))  # noqa: E731
+    Z = Phi(b) - Phi(a)
+    if not Z > 0:
+        raise ValueError(f"[{low}, {high}] holds no probability of N({mu}, {sigma}²) in float64")
+    shift = (phi(a) - phi(b)) / Z
+    var = sigma**2 * (1 + (a * phi(a) - b * phi(b)) / Z - shift**2)
+    return float(mu + sigma * shift), float(np.sqrt(var))
+
+
+# --------------------------------------------------------------------------------------
+# chapter 02: does an observation always help?
+# --------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class InformationTrial:
+    """Errors before and after one linear-Gaussian update, over runs and seeds.
+
+    Every run draws its own truth x from the prior N(mu, P_check) and its own observation
+    y = G x + bias + n with n ~ N(0, R_true); the estimator conditions the prior on y with
+    its model (G, R), which knows neither the truth nor the bias.
+
+    Attributes
+    ----------
+    seeds : ndarray, shape (S,)
+        The seeds, one batch of runs each.
+    prior_sq_error, posterior_sq_error : ndarray, shape (S, n_runs)
+        Squared error ‖mu − x‖² of the prior mean and ‖x̂ − x‖² of the posterior mean.
+    prior_trace, posterior_trace : float
+        trace P̌ and trace P̂: the mean squared errors the model predicts.
+    covariance_drop : ndarray, shape (n,)
+        Eigenvalues of P̌ − P̂ (never negative for a linear-Gaussian update).
+    """
+
+    seeds: np.ndarray
+    prior_sq_error: np.ndarray
+    posterior_sq_error: np.ndarray
+    prior_trace: float
+    posterior_trace: float
+    covariance_drop: np.ndarray
+
+    @property
+    def mse_ratio(self) -> np.ndarray:
+        """Per seed: mean posterior squared error over mean prior squared error, shape (S,)."""
+        return self.posterior_sq_error.mean(axis=1) / self.prior_sq_error.mean(axis=1)
+
+    @property
+    def share_worse(self) -> np.ndarray:
+        """Per seed: the share of runs whose error grew with the observation, shape (S,)."""
+        return (self.posterior_sq_error > self.prior_sq_error).mean(axis=1)
+
+
+def information_trial(mu, P_check, G, R, *, seeds, n_runs=500, bias=None, R_true=None) -> InformationTrial:
+    """Condition a Gaussian prior on one linear observation, many times, and score it.
+
+    Parameters
+    ----------
+    mu : array_like, shape (n,)
+        Prior mean (the truth of each run is drawn from N(mu, P_check)).
+    P_check : array_like, shape (n, n)
+        Prior covariance.
+    G : array_like, shape (m, n)
+        Observation matrix.
+    R : array_like, shape (m, m)
+        Observation noise covariance the estimator assumes.
+    seeds : sequence of int
+        One batch of ``n_runs`` runs per seed.
+    n_runs : int
+        Runs per seed.
+    bias : array_like, shape (m,), optional
+        A constant sensor offset the estimator does not model (default none).
+    R_true : array_like, shape (m, m), optional
+        The noise covariance the observations are drawn with (default ``R``).
+
+    Returns
+    -------
+    InformationTrial
+    """
+    mu = as_vector(mu, "mu")
+    n = mu.shape[0]
+    P_check = as_covariance(P_check, "P_check", n)
+    G = as_matrix(G, "G")
+    if G.shape[1] != n:
+        raise ValueError(f"G must have {n} columns, got shape {G.shape}")
+    m = G.shape[0]
+    R = as_covariance(R, "R", m)
+    R_true = R if R_true is None else as_covariance(R_true, "R_true", m)
+    bias = np.zeros(m) if bias is None else as_vector(bias, "bias", m)
+    if isinstance(n_runs, bool) or not isinstance(n_runs, (int, np.integer)) or n_runs < 1:
+        raise ValueError(f"n_runs must be an integer >= 1, got {n_runs!r}")
+    seeds = np.array([as_seed(s) for s in seeds], dtype=int)
+    if seeds.size == 0:
+        raise ValueError("seeds must name at least one seed")
+
+    # the update is the same for every run: x̂ = mu + K (y − G mu), P̂ = P̌ − K G P̌
+    K = kf_gain(P_check, G, innovation_covariance(P_check, G, R))
+    P_hat = P_check - K @ G @ P_check
+    L_prior, L_noise = np.linalg.cholesky(P_check), np.linalg.cholesky(R_true)
+    prior_sq, post_sq = [], []
+    for seed in seeds:
+        rng = np.random.default_rng(int(seed))
+        x_true = mu + rng.standard_normal((n_runs, n)) @ L_prior.T
+        y = x_true @ G.T + bias + rng.standard_normal((n_runs, m)) @ L_noise.T
+        x_hat = mu + (y - G @ mu) @ K.T
+        prior_sq.append(np.sum((mu - x_true) ** 2, axis=1))
+        post_sq.append(np.sum((x_hat - x_true) ** 2, axis=1))
+    return InformationTrial(seeds=seeds, prior_sq_error=np.array(prior_sq), posterior_sq_error=np.array(post_sq),
+                            prior_trace=float(np.trace(P_check)), posterior_trace=float(np.trace(P_hat)),
+                            covariance_drop=np.linalg.eigvalsh(0.5 * ((P_check - P_hat) + (P_check - P_hat).T)))
