@@ -68,3 +68,15 @@ def test_iekf_beats_the_ekf_on_precise_beacons_and_ties_on_far_ones():
     far = beacons.kitti_beacons("turns", 1, offset=100.0, sigma_range=0.5)
     e, i = beacons.run_beacon_filter(far), beacons.run_beacon_filter(far, iterated=True)
     assert abs(i.position_rmse - e.position_rmse) < 0.02 * e.position_rmse
+
+
+def test_runs_over_seeds_are_the_single_runs_of_each_seed():
+    # the notebook's spread over seeds is built from the same step functions as one run
+    runs = beacons.runs_over_seeds([3, 4], iterated=True, sigma_a=1.0, offset=50.0)
+    for seed, run in zip([3, 4], runs):
+        alone = beacons.run_beacon_filter(beacons.kitti_beacons("turns", seed, offset=50.0), iterated=True,
+                                          sigma_a=1.0)
+        np.testing.assert_array_equal(run.nees, alone.nees)
+    assert not np.array_equal(runs[0].nees, runs[1].nees)
+    with pytest.raises(ValueError, match="seeds"):
+        beacons.runs_over_seeds([])

@@ -9,7 +9,8 @@ beacons make it nearly linear: no difference.
 - :func:`beacon_observation`, :func:`beacon_jacobian`, :func:`bearings_residual`: g(x),
   G(x) and the wrapped residual of stacked [range, bearing] pairs, for the planar CV
   state [p_x, p_y, v_x, v_y];
-- :func:`run_beacon_filter`: the CV EKF or IEKF over a scenario (:class:`BeaconResult`).
+- :func:`run_beacon_filter`: the CV EKF or IEKF over a scenario (:class:`BeaconResult`);
+- :func:`runs_over_seeds`: one filter over scenarios that differ only in their seed (simulated noise and prior error; the same real KITTI truth).
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from kalman_course.evaluation.metrics import nees, position_rmse
 from kalman_course.filters.ekf import ekf_predict, ekf_update, iekf_update
 
 __all__ = ["BeaconScenario", "kitti_beacons", "beacon_observation", "beacon_jacobian", "bearings_residual",
-           "BeaconResult", "run_beacon_filter"]
+           "BeaconResult", "run_beacon_filter", "runs_over_seeds"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -270,3 +271,34 @@ def run_beacon_filter(scenario: BeaconScenario, *, iterated=False, sigma_a=2.0, 
         xs[k], Ps[k] = x, P
     err = xs - scenario.truth
     return BeaconResult(xs, Ps, position_rmse(xs[:, :2], scenario.truth[:, :2]), nees(err, Ps), its)
+
+
+def runs_over_seeds(seeds, *, iterated=False, sigma_a=2.0, name="turns", **scenario) -> list[BeaconResult]:
+    """The EKF (or IEKF) on :func:`kitti_beacons` scenarios that differ only in their seed.
+
+    Each seed draws its own simulated measurement noise and prior error; the truth is the
+    same real KITTI drive in every run, so the runs are independent in their noise only.
+
+    Parameters
+    ----------
+    seeds : sequence of int
+        One scenario per seed.
+    iterated : bool
+        IEKF updates instead of EKF ones.
+    sigma_a : float
+        Acceleration noise of the filter's CV model, m/s².
+    name : str
+        KITTI excerpt.
+    **scenario
+        Further keyword arguments of :func:`kitti_beacons` (``offset``, ``sigma_range``, ...).
+
+    Returns
+    -------
+    list of BeaconResult
+        One per seed; ``np.array([r.nees for r in runs])`` is the (n_seeds, N) NEES record.
+    """
+    seeds = [as_seed(s) for s in seeds]
+    if not seeds:
+        raise ValueError("seeds must name at least one seed")
+    return [run_beacon_filter(kitti_beacons(name, seed, **scenario), iterated=iterated, sigma_a=sigma_a)
+            for seed in seeds]
