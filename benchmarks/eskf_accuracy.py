@@ -189,7 +189,7 @@ def print_excerpt(name: str, cfg) -> bool:
     print("\nreference / raw, median (min–max) over the draws [draws missing the bar]: "
           + ", ".join(f"{k} {spread(ratios[k]).text('.3f')} (≤ {BARS[k]}) [{spread(ratios[k]).count_above(BARS[k])}]"
                       for k in BARS)
-          + f"; NEES {spread(nees).text('.2f')} (3–12) [{int(np.sum((nees < 3) | (nees > 12)))}]: "
+          + f"; NEES {spread(nees).text('.2f')} (the course's target 3–12, not a χ² test) [{int(np.sum((nees < 3) | (nees > 12)))}]: "
           + ("PASS on the medians" if passed else "FAIL on the medians"))
     print("largest position difference from the reference: "
           + ", ".join(f"{k.split(', ')[-1]} {v * 1e3:.3f} mm" for k, v in list(diffs.items())[1:]) + "\n")

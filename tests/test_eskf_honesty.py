@@ -154,10 +154,13 @@ def test_paired_ratio_and_the_table(turns_spread):
         eskf_seeds.paired_ratio([turns_spread], [other])
     with pytest.raises(ValueError, match="attr"):
         eskf_seeds.paired_ratio([turns_spread], [turns_spread], "speed")
-    table = eskf_seeds.seed_spread_table([turns_spread], position_bar=0.0)
+    table = eskf_seeds.seed_spread_table([turns_spread], position_target=0.0)
     row = table.splitlines()[-1].split()
     assert row[0] == "turns" and row[1] == "3"
-    assert row[4] == "3"            # every ratio is above a bar of 0 (row: name, n, median, (range), count, ...)
+    assert row[4] == "3"            # every ratio is above a target of 0 (row: name, n, median, (range), count, ...)
+    assert row[10::3] == [str(turns_spread.inconsistent(b)) for b in eskf_seeds.NEES_BLOCKS]
+    with pytest.raises(ValueError, match="block"):
+        turns_spread.inconsistent("velocity")
     with pytest.raises(ValueError, match="seed"):
         eskf_seeds.lidar_seed_spread(load_kitti("turns"), "kitti_lidar", [])
 

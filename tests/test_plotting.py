@@ -338,10 +338,17 @@ def test_pose_errors_grid_has_six_panels_with_bands():
 def test_bias_figures():
     t, _, _, std = _eskf_like()
     fig = plotting.plot_bias_estimates(t, np.full((50, 3), 0.01), np.full((50, 3), 1e-5))
-    assert [len(ax.lines) for ax in fig.axes] == [3, 3]
-    np.testing.assert_allclose(fig.axes[1].lines[0].get_ydata(), np.rad2deg(1e-5) * 3600)
+    assert len(fig.axes) == 6 and all(len(ax.collections) == 0 for ax in fig.axes)
+    np.testing.assert_allclose(fig.axes[3].lines[0].get_ydata(), np.rad2deg(1e-5) * 3600)
+    sig_w = np.full((50, 3), 2e-5)
+    fig = plotting.plot_bias_estimates(t, np.full((50, 3), 0.01), np.full((50, 3), 1e-5),
+                                       accel_sigma=np.full((50, 3), 0.002), gyro_sigma=sig_w)
+    band = fig.axes[4].collections[0].get_paths()[0].vertices[:, 1]     # ±3σ of b_ω y, in deg/h
+    np.testing.assert_allclose([band.min(), band.max()], np.rad2deg(1e-5 + np.array([-3, 3]) * 2e-5) * 3600)
     with pytest.raises(ValueError, match="gyro_bias"):
         plotting.plot_bias_estimates(t, np.zeros((50, 3)), np.zeros((50, 2)))
+    with pytest.raises(ValueError, match="together"):
+        plotting.plot_bias_estimates(t, np.zeros((50, 3)), np.zeros((50, 3)), gyro_sigma=sig_w)
 
     class Run:
         def __init__(self, scale):
@@ -350,10 +357,8 @@ def test_bias_figures():
         def std(self):
             return self._std
 
-    labels = [text.get_text() for text in fig.axes[1].get_legend().get_texts()]
-    assert labels == ["b_ω x", "b_ω y", "b_ω z"] and fig.axes[1].get_ylabel() == "b_ω [deg/h]"
-    # the legends sit beside the axes, not on the curves
-    assert all(ax.get_legend().get_bbox_to_anchor().x0 > ax.get_window_extent().x1 - 1 for ax in fig.axes)
+    labels = [text.get_text() for text in fig.axes[3].get_legend().get_texts()]
+    assert labels == ["±3σ", "b_ω x estimate"] and fig.axes[3].get_ylabel() == "b_ω x [deg/h]"
 
     # two runs whose σ coincide must both show: the second one dashed
     fig = plotting.plot_bias_sigmas({"random walk": Run(1.0), "constant": Run(1.0)})

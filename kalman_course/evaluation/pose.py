@@ -89,7 +89,9 @@ def evaluate(t, position, rotation, truth, P=None, rpe_delta: float = 1.0) -> di
         relative pose over ``rpe_delta``; NaN if no two times are that far apart),
         ``nees_pose`` (mean 6-dof NEES; NaN without P), ``position_error`` (K, 3) = p −
         p_true, ``attitude_error`` (K, 3) = Log(R_trueᵀ R) (nominal − true, rad),
-        ``nees`` (K,) (NaN without P).
+        ``nees`` (K,) (NaN without P), and its two 3-dof blocks ``nees_position`` (K,)
+        and ``nees_attitude`` (K,), each from its own block of P (a 6-dof NEES near 6 can
+        hide one block above 3 and one below).
 
     Raises
     ------
@@ -144,10 +146,14 @@ def evaluate(t, position, rotation, truth, P=None, rpe_delta: float = 1.0) -> di
             raise ValueError(f"P must have shape ({K}, 15, 15) or ({K}, 6, 6), got {P.shape}")
         P_pose = P if P.shape[-1] == 6 else P[:, POSE_INDEX][:, :, POSE_INDEX]
         # the NEES, through the function nees() is built on (chapter 09 withholds nees itself)
-        nees = normalised_squared(np.concatenate([position_error, attitude_error], axis=1), P_pose, "error", "P")
+        error = np.concatenate([position_error, attitude_error], axis=1)
+        nees = normalised_squared(error, P_pose, "error", "P")
         out["nees"] = nees
         out["nees_pose"] = float(np.mean(nees))
+        for key, block in (("nees_position", slice(0, 3)), ("nees_attitude", slice(3, 6))):
+            out[key] = normalised_squared(error[:, block], P_pose[:, block, block], "error", "P")
     else:
-        out["nees"] = np.full(K, np.nan)
+        for key in ("nees", "nees_position", "nees_attitude"):
+            out[key] = np.full(K, np.nan)
         out["nees_pose"] = float("nan")
     return out

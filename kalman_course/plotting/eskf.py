@@ -123,8 +123,12 @@ def plot_pose_errors(t, position_error, attitude_error, std, *, n_sigma=3, figsi
     return fig
 
 
-def plot_bias_estimates(t, accel_bias, gyro_bias, *, figsize=(12, 3.5)):
-    """The estimated accelerometer (m/s²) and gyroscope (deg/h) biases, one line per axis.
+def plot_bias_estimates(t, accel_bias, gyro_bias, *, accel_sigma=None, gyro_sigma=None, n_sigma=3,
+                        figsize=(12, 5)):
+    """The estimated accelerometer (m/s²) and gyroscope (deg/h) biases, one panel per axis.
+
+    With the filter's σ of each bias, each panel also shades the estimate ± n_sigma·σ, so
+    that "indistinguishable from zero" can be read off: zero inside the band.
 
     Parameters
     ----------
@@ -134,26 +138,39 @@ def plot_bias_estimates(t, accel_bias, gyro_bias, *, figsize=(12, 3.5)):
         b_a, m/s².
     gyro_bias : array_like, shape (N, 3)
         b_ω, rad/s (drawn in deg/h).
+    accel_sigma, gyro_sigma : array_like, shape (N, 3), optional
+        The filter's σ of b_a (m/s²) and of b_ω (rad/s), e.g. ``res.std()[:, 9:12]`` and
+        ``res.std()[:, 12:15]``; both or neither.
+    n_sigma : float
+        Half-width of the bands.
     figsize : tuple
         Figure size.
 
     Returns
     -------
     matplotlib.figure.Figure
+        Two rows (accelerometer, gyroscope) of three panels (x, y, z).
     """
     import matplotlib.pyplot as plt
 
     t = _vector(t, "t")
-    accel_bias = _rows(accel_bias, "accel_bias", t.shape[0], 3)
-    gyro_bias = _rows(gyro_bias, "gyro_bias", t.shape[0], 3)
-    fig, axes = plt.subplots(1, 2, figsize=figsize)
-    for i, axis in enumerate(_AXES):
-        axes[0].plot(t, accel_bias[:, i], color=CURVE_COLORS[i], label=f"b_a {axis}")
-        axes[1].plot(t, gyro_bias[:, i] * _RAD_PER_S_TO_DEG_PER_H, color=CURVE_COLORS[i], label=f"b_ω {axis}")
-    axes[0].set(xlabel="t [s]", ylabel="b_a [m/s²]", title="accelerometer bias estimate")
-    axes[1].set(xlabel="t [s]", ylabel="b_ω [deg/h]", title="gyroscope bias estimate")
-    for ax in axes:
-        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)  # beside the curves
+    n = t.shape[0]
+    if (accel_sigma is None) != (gyro_sigma is None):
+        raise ValueError("accel_sigma and gyro_sigma must be given together (or neither)")
+    rows = [("b_a", "m/s²", _rows(accel_bias, "accel_bias", n, 3), 1.0, accel_sigma, "accel_sigma"),
+            ("b_ω", "deg/h", _rows(gyro_bias, "gyro_bias", n, 3), _RAD_PER_S_TO_DEG_PER_H, gyro_sigma, "gyro_sigma")]
+    fig, axes = plt.subplots(2, 3, figsize=figsize, sharex=True)
+    for row, (symbol, unit, values, scale, sigma, sigma_name) in zip(axes, rows):
+        sigma = None if sigma is None else _rows(sigma, sigma_name, n, 3)
+        for i, (ax, axis) in enumerate(zip(row, _AXES)):
+            if sigma is not None:
+                plot_sigma_band(ax, t, values[:, i] * scale, sigma[:, i] * scale, n_sigma)
+            ax.plot(t, values[:, i] * scale, color=CURVE_COLORS[i], label=f"{symbol} {axis} estimate")
+            ax.axhline(0.0, color="black", lw=0.6)
+            ax.set(ylabel=f"{symbol} {axis} [{unit}]")
+            ax.legend(loc="upper right", fontsize=7)
+    for ax in axes[1]:
+        ax.set_xlabel("t [s]")
     fig.tight_layout()
     return fig
 
