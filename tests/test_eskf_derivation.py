@@ -81,6 +81,13 @@ def test_steps_markdown_numbers_proves_and_says_how():
         steps_markdown(bad)
     with pytest.raises(KeyError):
         steps_markdown(d, ["no_such_step"])
+    # numbered as shown: a lecture showing steps in its own order counts on from where it was
+    shown = steps_markdown(d, ["dv_collect", "dv_definition"], start=7)
+    assert re.findall(r"\*\*\((\d+)\)\*\*", shown) == ["7", "8"]
+    assert shown.startswith("**(7)** " + d["dv_collect"].description)
+    for bad_start in (0, -1, 1.5, True):
+        with pytest.raises(ValueError, match="start"):
+            steps_markdown(d, ["dv_collect"], start=bad_start)
 
 
 def test_the_handout_renders_delta_theta(tmp_path):

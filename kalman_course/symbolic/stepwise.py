@@ -839,7 +839,8 @@ def _order_words(orders) -> str:
     return "equal to order " + ", ".join(f"{k} in ${sp.latex(p)}$" for p, k in orders)
 
 
-def steps_markdown(derivation: Derivation, labels: Iterable[str] | None = None, *, prove: bool = True) -> str:
+def steps_markdown(derivation: Derivation, labels: Iterable[str] | None = None, *, prove: bool = True,
+                   start: int | None = None) -> str:
     """Some steps of a derivation as Markdown, each with its caption and how it is proved.
 
     Parameters
@@ -849,11 +850,15 @@ def steps_markdown(derivation: Derivation, labels: Iterable[str] | None = None, 
         The steps to show, in order (all if omitted).
     prove : bool
         If True (default) every checked step is proved first; one that fails raises.
+    start : int, optional
+        Number the shown steps consecutively from ``start`` (a lecture that shows several
+        derivations, or one derivation in another order, numbers its steps as it shows
+        them). By default each step keeps its number in the whole derivation.
 
     Returns
     -------
     str
-        A numbered list, numbered as in the whole derivation, with ``$$...$$`` displays.
+        A numbered list with ``$$...$$`` displays.
 
     Raises
     ------
@@ -862,8 +867,13 @@ def steps_markdown(derivation: Derivation, labels: Iterable[str] | None = None, 
     AssertionError
         A checked step that SymPy does not prove.
     """
-    number = {e.label: i for i, e in enumerate(derivation.equations, 1)}
     chosen = [derivation[label] for label in labels] if labels is not None else list(derivation.equations)
+    if start is None:
+        number = {e.label: i for i, e in enumerate(derivation.equations, 1)}
+    else:
+        if isinstance(start, bool) or not isinstance(start, int) or start < 1:
+            raise ValueError(f"start must be a positive int, got {start!r}")
+        number = {e.label: i for i, e in enumerate(chosen, start)}
     lines = []
     for eq in chosen:
         if prove and eq.checked and not eq.holds():
