@@ -407,3 +407,52 @@ def test_bad_input_raises_a_value_error_naming_it(stop_go, init, call, match):
     with pytest.raises(ValueError, match=match):
         call(stop_go, init)
     plt.close("all")
+
+
+# ---------------------------------------------------------------------------------------
+# which block of a wide P̂₀ does the harm (lecture 10 §3)
+# ---------------------------------------------------------------------------------------
+
+def _correlated_covariance(seed=4):
+    A = np.random.default_rng(seed).standard_normal((15, 15))
+    return A @ A.T + 15 * np.eye(15)
+
+
+def test_scale_blocks_scales_each_sigma_and_keeps_the_correlations():
+    P0 = _correlated_covariance()
+    P = ini.scale_blocks(P0, {"attitude": 100.0, "gyro_bias": 4.0})
+    d = np.ones(15)
+    d[6:9], d[12:15] = 10.0, 2.0
+    np.testing.assert_allclose(P, d[:, None] * P0 * d[None, :], rtol=1e-14)
+    np.testing.assert_array_equal(P[:6, :6], P0[:6, :6])                 # blocks not named are untouched
+    corr = lambda M: M / np.sqrt(np.outer(np.diag(M), np.diag(M)))      # noqa: E731
+    np.testing.assert_allclose(corr(P), corr(P0), rtol=1e-12)
+    assert np.array_equal(P, P.T)
+
+
+@pytest.mark.parametrize("factors, P0, message", [
+    ({"heading": 10.0}, None, "unknown block 'heading'"),
+    ({"attitude": 0.0}, None, r"factors\['attitude'\]"),
+    ({"attitude": -1.0}, None, r"factors\['attitude'\]"),
+    ({}, np.eye(6), r"P0 must have shape \(15, 15\)"),
+])
+def test_scale_blocks_rejects_what_it_cannot_scale(factors, P0, message):
+    with pytest.raises(ValueError, match=message):
+        ini.scale_blocks(_correlated_covariance() if P0 is None else P0, factors)
+
+
+def test_p0_block_study_changes_one_thing_at_a_time():
+    # a factor of 1 is the derived P̂₀ itself: the same start, the same fixes, the same answer;
+    # a wider gyro-bias prior on the same draw changes it
+    sg = load_kitti("stop_go")
+    span = ini.detect_standstill(sg.imu, sg.gravity)[0]
+    out = ini.p0_block_study(sg, span, {"derived": {}, "unit factor": {"position": 1.0},
+                                        "wide gyro bias": {"gyro_bias": 100.0}}, [None, 3])
+    assert set(out) == {"derived", "unit factor", "wide gyro bias"} and out["derived"].shape == (2,)
+    np.testing.assert_array_equal(out["derived"], out["unit factor"])
+    assert not np.allclose(out["derived"], out["wide gyro bias"])
+    assert out["derived"][0] != out["derived"][1]                        # seed None is the shipped draw, not seed 3
+    with pytest.raises(ValueError, match="seeds"):
+        ini.p0_block_study(sg, span, {"derived": {}}, [])
+    with pytest.raises(ValueError, match="variants"):
+        ini.p0_block_study(sg, span, {}, [None])

@@ -329,3 +329,38 @@ def test_drift_figure_has_one_curve_per_estimate_and_length_axis(slice_compariso
     plt.close(fig)
     with pytest.raises(ValueError, match="must be \\(lengths"):
         plot_drift_by_length({"a": (lengths, t_pct)})
+
+
+# ---------------------------------------------------------------------------------------
+# white increments: the same filter with an increment model that is exactly right
+# ---------------------------------------------------------------------------------------
+
+def test_white_increment_track_has_white_increments_of_the_given_sigma(seq00):
+    s = vo_chapter.setup(seq00, "ORB-SLAM2", t_end=seq00.truth.t[0] + 80.0)
+    std = (0.02, 0.01, 0.005, 0.002, 0.001, 0.0005)          # per component, none equal: a swap shows
+    track = vo_chapter.white_increment_track(s, std, seed=7)
+    truth = seq00.truth
+    p_true, R_true = truth.position[s.frames], truth.rotation[s.frames]
+    np.testing.assert_allclose(track.position[0], p_true[0])
+    np.testing.assert_allclose(track.rotation[0], R_true[0])
+    n_p = np.array([R_true[k - 1].T @ (p_true[k] - p_true[k - 1]) for k in range(1, len(p_true))])
+    m_p = np.array([track.rotation[k - 1].T @ (track.position[k] - track.position[k - 1]) for k in range(1, len(p_true))])
+    n_th = np.array([so3.log((R_true[k - 1].T @ R_true[k]).T @ (track.rotation[k - 1].T @ track.rotation[k]))
+                     for k in range(1, len(p_true))])
+    noise = np.hstack([m_p - n_p, n_th])
+    n = len(noise)
+    np.testing.assert_allclose(noise.std(axis=0) / np.array(std), 1.0, atol=4 / np.sqrt(2 * n))
+    lag1 = [np.corrcoef(noise[:-1, i], noise[1:, i])[0, 1] for i in range(6)]
+    assert np.all(np.abs(lag1) < 4 / np.sqrt(n))                                   # white: no lag-1 correlation
+    again = vo_chapter.white_increment_track(s, std, seed=7)
+    np.testing.assert_array_equal(again.position, track.position)
+    assert not np.array_equal(vo_chapter.white_increment_track(s, std, seed=8).position, track.position)
+
+
+def test_white_increment_runs_score_each_seed_and_reject_none(seq00):
+    s = vo_chapter.setup(seq00, "ORB-SLAM2", t_end=seq00.truth.t[0] + 20.0)
+    scores = vo_chapter.white_increment_runs(s, (0.01, 0.001), [1, 2])
+    assert len(scores) == 2 and all(np.isfinite(sc.nees) and sc.ate > 0 for sc in scores)
+    assert scores[0].ate != scores[1].ate
+    with pytest.raises(ValueError, match="seeds"):
+        vo_chapter.white_increment_runs(s, (0.01, 0.001), [])

@@ -52,6 +52,7 @@ from kalman_course.core.linalg import symmetrise
 from kalman_course.core.imu import NavState, dead_reckon
 from kalman_course.core.observations import PoseObservations, PositionObservations
 from kalman_course.core.validation import as_real_array, as_rotation, as_rows, as_scalar, as_vector
+from kalman_course.data import simulate_gnss
 from kalman_course.evaluation import metrics
 from kalman_course.evaluation.pose import POSE_INDEX
 from kalman_course.filters import eskf
@@ -64,6 +65,7 @@ __all__ = [
     "heading_from_fixes", "heading_sigma", "speed_for_heading", "lag_corrected_velocity",
     "initial_covariance", "Initialisation", "initialise_from_gnss", "initialise_from_pose",
     "RunErrors", "run_errors", "settling_time", "StartComparison", "compare_starts",
+    "ERROR_BLOCKS", "scale_blocks", "p0_block_study",
     "P0Run", "p0_scaling",
 ]
 
@@ -1142,3 +1144,84 @@ def p0_scaling(excerpt, init: Initialisation, scales=(0.01, 1.0, 100.0), *, conf
                           settling_time(e.t, np.hypot(e.heading_error, e.tilt_error), thr_a) - init.t0,
                           float(np.mean(e.nees))))
     return runs
+
+
+#: The blocks of the 15-dof error state δx = [δp, δv, δθ, δb_a, δb_ω].
+ERROR_BLOCKS = {"position": slice(0, 3), "velocity": slice(3, 6), "attitude": slice(6, 9),
+                "accel_bias": slice(9, 12), "gyro_bias": slice(12, 15)}
+
+
+def scale_blocks(P0, factors) -> np.ndarray:
+    """P̂₀ with the variances of some blocks multiplied: D P̂₀ D, D = diag(√factor per entry).
+
+    The correlations between entries are kept; each σ of a block scales by √factor.
+
+    Parameters
+    ----------
+    P0 : array_like, shape (15, 15)
+        A covariance of δx.
+    factors : mapping of str to float
+        Block name (a key of :data:`ERROR_BLOCKS`) -> positive factor on its variances;
+        blocks not named keep factor 1.
+
+    Returns
+    -------
+    numpy.ndarray, shape (15, 15)
+    """
+    P0 = as_real_array(P0, "P0")
+    if P0.shape != (15, 15):
+        raise ValueError(f"P0 must have shape (15, 15), got {P0.shape}")
+    d = np.ones(15)
+    for name, factor in dict(factors).items():
+        if name not in ERROR_BLOCKS:
+            raise ValueError(f"factors: unknown block {name!r}; known: {', '.join(ERROR_BLOCKS)}")
+        d[ERROR_BLOCKS[name]] = math.sqrt(as_scalar(factor, f"factors[{name!r}]"))
+    return symmetrise(d[:, None] * P0 * d[None, :])
+
+
+def p0_block_study(excerpt, standstill, variants, seeds, *, config="kitti_gnss", last: float = 10.0) -> dict:
+    """Which block of a too-wide P̂₀ does the harm: heading error per variant and GNSS noise draw.
+
+    For each seed the GNSS fixes are drawn anew (``simulate_gnss`` on the excerpt's real
+    positions; seed None: the shipped draw), the filter is initialised from them
+    (:func:`initialise_from_gnss` after ``standstill``), and run from that start once per
+    variant, with P̂₀ scaled block by block (:func:`scale_blocks`). One thing changes at a
+    time: the start and the fixes are the same for every variant of a seed.
+
+    Parameters
+    ----------
+    excerpt : KittiExcerpt
+        Real IMU and truth (e.g. ``load_kitti("stop_go")``).
+    standstill : array_like, shape (2,)
+        A span of :func:`detect_standstill`.
+    variants : mapping of str to mapping
+        Label -> ``factors`` of :func:`scale_blocks` (``{}``: the derived P̂₀).
+    seeds : sequence of int or None
+        GNSS noise draws; None is the excerpt's shipped draw.
+    config : EskfConfig or str
+        The GNSS filter's configuration.
+    last : float
+        The heading error is the RMS over the run's last ``last`` seconds, degrees.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray, shape (len(seeds),)
+        Label -> RMS heading error over the last ``last`` s, degrees, per seed.
+    """
+    seeds = list(seeds)
+    if not seeds:
+        raise ValueError("seeds must hold at least one seed (or None for the shipped draw)")
+    if not variants:
+        raise ValueError("variants must name at least one P̂₀ scaling")
+    last = as_scalar(last, "last")
+    cfg = config if isinstance(config, EskfConfig) else load_config(config)
+    out = {label: np.empty(len(seeds)) for label in variants}
+    for i, seed in enumerate(seeds):
+        gnss = excerpt.gnss if seed is None else simulate_gnss(excerpt.gnss, seed, excerpt.gnss.sigma)
+        fixes = gnss.observations()
+        init = initialise_from_gnss(excerpt.imu, fixes, excerpt.gravity, standstill, config=cfg)
+        for label, factors in variants.items():
+            e = run_errors(excerpt, init.state, scale_blocks(init.P0, factors), init.k0, config=cfg, gnss=fixes)
+            tail = e.t >= e.t[-1] - last
+            out[label][i] = float(np.rad2deg(np.sqrt(np.mean(e.heading_error[tail] ** 2))))
+    return out

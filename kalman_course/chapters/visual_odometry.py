@@ -71,7 +71,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kalman_course.core.observations import PoseObservations
-from kalman_course.core.validation import as_scalar, as_vector
+from kalman_course.core import so3
+from kalman_course.core.validation import as_scalar, as_seed, as_vector
 from kalman_course.data.kitti import load_kitti
 from kalman_course.evaluation.drift import DriftResult, drift
 from kalman_course.evaluation.metrics import chi2_ppf, nis
@@ -85,6 +86,7 @@ __all__ = [
     "ABSOLUTE_BLOCKS", "RELATIVE_BLOCKS",
     "run_absolute", "run_relative_vo", "run_imu_gnss", "block_nis", "TunedStd", "tune_std",
     "Score", "score", "VoRow", "VoComparison", "compare", "table",
+    "white_increment_track", "white_increment_runs",
 ]
 
 #: The real visual-SLAM trajectories in the data, by name.
@@ -685,3 +687,62 @@ def table(comparison: VoComparison, timings: bool = False) -> str:
                  + ". Process noise, prior and "
                  f"GNSS σ: configuration {_CONFIG!r} of chapter 08.")
     return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------------------
+# Is it the VO's correlated errors? The same filter on white increments
+# ---------------------------------------------------------------------------------------
+
+def white_increment_track(s: VoSetup, std, seed: int) -> PoseObservations:
+    """A simulated VO track whose frame-to-frame increments are the true ones plus white noise.
+
+    Increment k is Δp = R_{k−1}ᵀ (p_k − p_{k−1}) + n_p and ΔR = R_{k−1}ᵀ R_k Exp(n_θ), from
+    the true poses of the evaluated frames, with n ~ N(0, diag(std²)) drawn anew at every
+    frame: exactly the noise model of :func:`run_relative_vo`, with no correlation in time.
+    The track is the sum of these increments from the true pose of the anchor frame.
+
+    Parameters
+    ----------
+    s : VoSetup
+        Frames, times and the truth (the real VO track is not used).
+    std : array_like, shape (2,) or (6,)
+        As for :func:`run_relative_vo`.
+    seed : int
+        Seed of the noise.
+
+    Returns
+    -------
+    PoseObservations
+        At the VO frames' times: positions (K, 3) m and attitudes (K, 3, 3).
+    """
+    sig = np.array(_stds(std, "std", (2, 6)))
+    sig = np.repeat(sig, 3) if sig.size == 2 else sig
+    rng = np.random.default_rng(as_seed(seed))
+    truth = s.excerpt.truth
+    p_true, R_true = truth.position[s.frames], truth.rotation[s.frames]
+    p, R = np.empty_like(p_true), np.empty_like(R_true)
+    p[0], R[0] = p_true[0], R_true[0]
+    noise = rng.standard_normal((len(p_true) - 1, 6)) * sig
+    for k in range(1, len(p_true)):
+        dp = R_true[k - 1].T @ (p_true[k] - p_true[k - 1]) + noise[k - 1, :3]
+        dR = R_true[k - 1].T @ R_true[k] @ so3.exp(noise[k - 1, 3:])
+        p[k], R[k] = p[k - 1] + R[k - 1] @ dp, R[k - 1] @ dR
+    return PoseObservations(s.vo.t.copy(), p, R)
+
+
+def white_increment_runs(s: VoSetup, std, seeds) -> list[Score]:
+    """:func:`run_relative_vo` on :func:`white_increment_track` draws: one :class:`Score` per seed.
+
+    The only change from the real run is the VO stream: the same IMU (real), start, filter
+    and increment σ, but increments whose errors are white and of exactly that σ.
+    """
+    seeds = [as_seed(seed) for seed in seeds]
+    if not seeds:
+        raise ValueError("seeds must hold at least one seed")
+    scores = []
+    for seed in seeds:
+        track = white_increment_track(s, std, seed)
+        sim = VoSetup(s.excerpt, s.system, s.first, s.last, s.start, s.initial, track, s.t_end, s.t_stop)
+        res = run_relative_vo(sim, std)
+        scores.append(score(sim, res.t, res.position, res.rotation, res.P))
+    return scores
