@@ -1223,5 +1223,5 @@ def p0_block_study(excerpt, standstill, variants, seeds, *, config="kitti_gnss",
         for label, factors in variants.items():
             e = run_errors(excerpt, init.state, scale_blocks(init.P0, factors), init.k0, config=cfg, gnss=fixes)
             tail = e.t >= e.t[-1] - last
-            out[label][i] = float(np.rad2deg(np.sqrt(np.mean(e.heading_error[tail] ** 2))))
+            out[label][i] = float(np.rad2deg(metrics.rmse(e.heading_error[tail], np.zeros(tail.sum()), axis=None)))
     return out
