@@ -31,33 +31,56 @@ module makes an IMU on which they differ, in two steps.
    :func:`kalman_course.chapters.bias_models.earth_rotation`).
 
 2. **Simulated MEMS errors** (:func:`simulate_mems_imu`), per axis and sensor, drawn from
-   ``numpy.random.default_rng(seed)``: reading = reference + bias + white noise, with
+   ``numpy.random.default_rng(seed)``: reading = reference + bias + white noise, where the
+   bias is a turn-on value plus a first-order Gauss–Markov drift d (:func:`gauss_markov_drift`):
 
-       bias:   b_0 ~ N(0, σ_turn-on²),   b_{k+1} = b_k + σ_b √dt_k · N(0, 1)   (random walk)
+       bias:   b_k = b_0 + d_k,   b_0 ~ N(0, σ_turn-on²)
+       drift:  d_0 = 0,   d_{k+1} = φ_k d_k + σ_b √(1 − φ_k²) · N(0, 1),   φ_k = exp(−dt_k / τ)
        noise:  n_k ~ N(0, σ_n² / dt_nom)   (σ_n the white-noise density, dt_nom the median step)
 
-   The bias *drifts during the run*: a filter that models it as a constant cannot follow.
+   with dt_k = t[k+1] − t[k] the IMU's own (irregular) intervals: the discretisation is
+   exact for every step, whatever its length. The bias *drifts during the run*, so a
+   filter that models it as a constant cannot follow; but the drift stays bounded: its
+   spread grows as σ_b √(1 − exp(−2(t − t_0)/τ)) and levels off at σ_b after a few τ.
 
 The spec (:class:`MemsSpec`) is written in datasheet units; its properties give the
 continuous densities that the ESKF configuration takes (``process.*`` of
 :mod:`kalman_course.filters.eskf_config`). Conversions, with g₀ = 9.80665 m/s²:
 
 ==========================  ===================  ==========================================
-datasheet                   SI (filter)          conversion
+datasheet                   SI                   conversion
 ==========================  ===================  ==========================================
 gyro ARW N_ω [°/√h]         rad/s/√Hz            N_ω · (π/180) / 60     (√h = 60 √s)
-gyro BI B_ω [°/h], τ [s]    rad/s²/√Hz           B_ω · (π/180) / 3600 / √τ
+gyro BI B_ω [°/h]           rad/s                σ_bω = B_ω · (π/180) / 3600  (GM stationary σ)
+… with τ_ω [s]              rad/s²/√Hz           q_bω = σ_bω √(2/τ_ω)  (GM driving density)
 gyro turn-on [°/h]          rad/s                · (π/180) / 3600
 accel noise N_a [µg/√Hz]    m/s²/√Hz             N_a · 1e-6 g₀   (VRW in m/s/√h = that · 60)
-accel BI B_a [mg], τ [s]    m/s³/√Hz             B_a · 1e-3 g₀ / √τ
+accel BI B_a [mg]           m/s²                 σ_ba = B_a · 1e-3 g₀  (GM stationary σ)
+… with τ_a [s]              m/s³/√Hz             q_ba = σ_ba √(2/τ_a)  (GM driving density)
 accel turn-on [mg]          m/s²                 · 1e-3 g₀
 ==========================  ===================  ==========================================
 
-The bias instability B is modelled as a random walk that moves by one B (1σ) in one
-correlation time τ: its density is σ_b = B / √τ. (A datasheet's bias instability is the
-flat floor of the Allan deviation, flicker noise; a random walk of this density has an
-Allan deviation of σ_b √(τ'/3), equal to B at τ' = 3τ. It is the simplest model that
-drifts, and it is exactly the model the ESKF's random-walk bias assumes.)
+**The bias instability as a Gauss–Markov process.** A bias-instability figure B with a
+correlation time τ is modelled, as is usual in navigation, by the first-order
+Gauss–Markov process
+
+    ḃ = −b/τ + w,   E[w(t) w(t′)] = q² δ(t − t′),   q² = 2σ_b²/τ,
+
+whose stationary standard deviation is σ_b and whose autocorrelation is σ_b² exp(−|Δt|/τ).
+This module takes **σ_b = B**: the datasheet number is read as the size the bias wanders
+to over times of the order of τ, the simplest reading and a common one. It is an
+assumption, not a fit: a datasheet's B is strictly the flat floor of the Allan deviation,
+and a Gauss–Markov process of stationary σ_b has an Allan deviation that peaks at
+0.62 σ_b (at an averaging time of 1.89 τ), so matching the floor instead would take
+σ_b = 1.62 B. σ_b = B is the milder of the two readings. The exact discrete form over a step Δt is
+b_{k+1} = e^{−Δt/τ} b_k + w_k, Var(w_k) = σ_b²(1 − e^{−2Δt/τ}).
+
+For Δt and t − t_0 ≪ τ, e^{−Δt/τ} ≈ 1 and σ_b²(1 − e^{−2Δt/τ}) ≈ q² Δt: over short
+horizons the drift looks like a **random walk of density q = σ_b √(2/τ)**. That random
+walk is what the ESKF's ``bias_model="random_walk"`` assumes, and q is the density
+:attr:`MemsSpec.densities` hands it: the filter's model approximates the drift that made
+the data, it is not that model (the random walk's spread grows as q √t without bound;
+the drift's stops at σ_b).
 
 Everything this module returns says it is simulated: the motion comes from the real
 KITTI ground truth; the readings' errors are simulated; Earth rotation is absent.
@@ -75,7 +98,7 @@ from kalman_course.core.imu import NavState, NavTrajectory
 from kalman_course.core.validation import as_rows, as_scalar, as_seed, as_vector
 
 __all__ = ["MemsSpec", "CONSUMER_MEMS", "STANDARD_GRAVITY", "SmoothTruth", "ReferenceImu", "MemsImuData",
-           "reference_imu", "simulate_mems_imu"]
+           "reference_imu", "gauss_markov_drift", "simulate_mems_imu"]
 
 #: Standard gravity g₀, m/s²: what datasheets mean by "g" (mg, µg).
 STANDARD_GRAVITY = 9.80665
@@ -100,20 +123,21 @@ class MemsSpec:
     gyro_arw_deg_rth : float
         Gyroscope angle random walk N_ω, °/√h (white rate noise; °/s/√Hz × 60).
     gyro_bias_instability_deg_h : float
-        Gyroscope bias instability B_ω, °/h: the bias moves by this much in
-        ``gyro_bias_time_s``.
+        Gyroscope bias instability B_ω, °/h: taken as the stationary σ of the bias's
+        first-order Gauss–Markov drift (see the module docstring).
     gyro_bias_time_s : float
-        Correlation time τ_ω of the gyroscope bias, s.
+        Correlation time τ_ω of that drift, s: drift values Δt apart correlate by
+        exp(−Δt/τ_ω).
     gyro_turn_on_deg_h : float
         Gyroscope bias at switch-on (turn-on to turn-on), °/h.
     accel_noise_ug_rthz : float
         Accelerometer white-noise density N_a, µg/√Hz (velocity random walk
         N_a · 1e-6 g₀ · 60 m/s/√h).
     accel_bias_instability_mg : float
-        Accelerometer bias instability B_a, mg: the bias moves by this much in
-        ``accel_bias_time_s``.
+        Accelerometer bias instability B_a, mg: taken as the stationary σ of the bias's
+        Gauss–Markov drift.
     accel_bias_time_s : float
-        Correlation time τ_a of the accelerometer bias, s.
+        Correlation time τ_a of that drift, s.
     accel_turn_on_mg : float
         Accelerometer bias at switch-on, mg.
 
@@ -150,14 +174,30 @@ class MemsSpec:
         return self.accel_noise_ug_rthz * 1e-6 * STANDARD_GRAVITY
 
     @property
+    def gyro_bias_sigma(self) -> float:
+        """σ_bω = B_ω in rad/s: the stationary standard deviation of the gyroscope bias drift."""
+        return self.gyro_bias_instability_deg_h * _DEG_PER_H
+
+    @property
+    def accel_bias_sigma(self) -> float:
+        """σ_ba = B_a in m/s²: the stationary standard deviation of the accelerometer bias drift."""
+        return self.accel_bias_instability_mg * 1e-3 * STANDARD_GRAVITY
+
+    @property
     def gyro_bias_density(self) -> float:
-        """σ_bω = B_ω / √τ_ω, density of the gyroscope bias random walk, rad/s²/√Hz."""
-        return self.gyro_bias_instability_deg_h * _DEG_PER_H / math.sqrt(self.gyro_bias_time_s)
+        """q_bω = σ_bω √(2/τ_ω), rad/s²/√Hz.
+
+        The density of the white noise that drives the gyroscope's Gauss–Markov bias drift
+        (ḃ = −b/τ + w, E[w w′] = q² δ), and so also the density of the random walk that
+        the drift looks like over times ≪ τ_ω: the value a filter with a random-walk bias
+        takes (:attr:`densities`) as its short-horizon approximation of the drift.
+        """
+        return self.gyro_bias_sigma * math.sqrt(2.0 / self.gyro_bias_time_s)
 
     @property
     def accel_bias_density(self) -> float:
-        """σ_ba = B_a / √τ_a, density of the accelerometer bias random walk, m/s³/√Hz."""
-        return self.accel_bias_instability_mg * 1e-3 * STANDARD_GRAVITY / math.sqrt(self.accel_bias_time_s)
+        """q_ba = σ_ba √(2/τ_a), m/s³/√Hz: the accelerometer's counterpart of :attr:`gyro_bias_density`."""
+        return self.accel_bias_sigma * math.sqrt(2.0 / self.accel_bias_time_s)
 
     @property
     def gyro_turn_on(self) -> float:
@@ -176,29 +216,36 @@ class MemsSpec:
 
     @property
     def densities(self) -> np.ndarray:
-        """(σ_a, σ_ω, σ_ba, σ_bω), shape (4,): the order of ``EskfConfig.process_density``."""
+        """(σ_a, σ_ω, q_ba, q_bω), shape (4,): the order of ``EskfConfig.process_density``.
+
+        The white-noise densities and the bias densities q = σ_b √(2/τ) that a random-walk
+        bias model takes as its approximation of the Gauss–Markov drift.
+        """
         return np.array([self.accel_noise_density, self.gyro_noise_density, self.accel_bias_density,
                          self.gyro_bias_density])
 
     def describe(self) -> str:
         """The spec as a Markdown table: datasheet value and unit, SI value and unit."""
+        root_h = _SQRT_HOUR
         rows = [
             ("gyro angle random walk", self.gyro_arw_deg_rth, "°/√h", self.gyro_noise_density, "rad/s/√Hz"),
-            ("gyro bias instability", self.gyro_bias_instability_deg_h, "°/h", None, ""),
-            ("gyro bias correlation time", self.gyro_bias_time_s, "s", None, ""),
-            ("→ gyro bias random walk", self.gyro_bias_instability_deg_h / math.sqrt(self.gyro_bias_time_s)
-             * _SQRT_HOUR, "°/h/√h", self.gyro_bias_density, "rad/s²/√Hz"),
+            ("gyro bias instability B_ω = Gauss–Markov stationary σ_bω", self.gyro_bias_instability_deg_h, "°/h",
+             self.gyro_bias_sigma, "rad/s"),
+            ("gyro bias correlation time τ_ω", self.gyro_bias_time_s, "s", self.gyro_bias_time_s, "s"),
+            ("→ Gauss–Markov driving density q_bω = σ_bω √(2/τ_ω) (the random walk of t ≪ τ_ω)",
+             self.gyro_bias_density / _DEG_PER_H * root_h, "°/h/√h", self.gyro_bias_density, "rad/s²/√Hz"),
             ("gyro turn-on bias", self.gyro_turn_on_deg_h, "°/h", self.gyro_turn_on, "rad/s"),
             ("accel noise density", self.accel_noise_ug_rthz, "µg/√Hz", self.accel_noise_density, "m/s²/√Hz"),
             ("→ velocity random walk", self.accel_vrw_m_s_rth, "m/s/√h", None, ""),
-            ("accel bias instability", self.accel_bias_instability_mg, "mg", None, ""),
-            ("accel bias correlation time", self.accel_bias_time_s, "s", None, ""),
-            ("→ accel bias random walk", self.accel_bias_instability_mg / math.sqrt(self.accel_bias_time_s),
-             "mg/√s", self.accel_bias_density, "m/s³/√Hz"),
+            ("accel bias instability B_a = Gauss–Markov stationary σ_ba", self.accel_bias_instability_mg, "mg",
+             self.accel_bias_sigma, "m/s²"),
+            ("accel bias correlation time τ_a", self.accel_bias_time_s, "s", self.accel_bias_time_s, "s"),
+            ("→ Gauss–Markov driving density q_ba = σ_ba √(2/τ_a) (the random walk of t ≪ τ_a)",
+             self.accel_bias_density / (1e-3 * STANDARD_GRAVITY), "mg/√s", self.accel_bias_density, "m/s³/√Hz"),
             ("accel turn-on bias", self.accel_turn_on_mg, "mg", self.accel_turn_on, "m/s²"),
         ]
         lines = [f"MEMS spec `{self.name}` (simulated errors, 1σ per axis)", "",
-                 "| term | datasheet | unit | SI (filter) | SI unit |", "|---|---|---|---|---|"]
+                 "| term | datasheet | unit | SI | SI unit |", "|---|---|---|---|---|"]
         for term, value, unit, si, si_unit in rows:
             shown = "" if si is None else f"{si:.3g}"
             lines.append(f"| {term} | {value:.3g} | {unit} | {shown} | {si_unit} |")
@@ -212,9 +259,10 @@ class MemsSpec:
 #: - gyro bias instability: Allan-deviation floors of such parts are 5–50 °/h; 20 °/h;
 #: - accel noise: datasheets give 70–300 µg/√Hz; 150 µg/√Hz (VRW 0.088 m/s/√h);
 #: - accel bias instability: 0.05–0.2 mg; 0.1 mg;
-#: - correlation time 100 s for both: the bias wanders by one bias instability in
-#:   100 s (gyro random walk 120 °/h/√h ≈ 9.7e-6 rad/s²/√Hz, of the order of the
-#:   1.9e-5 used for the ADIS16448 of the EuRoC data set);
+#: - correlation time 100 s for both (an assumption, stated as such): the drift is a
+#:   Gauss–Markov process of σ = the bias instability and τ = 100 s, driven by
+#:   q = σ √(2/τ) (gyro 170 °/h/√h ≈ 1.4e-5 rad/s²/√Hz, of the order of the 1.9e-5
+#:   random walk used for the ADIS16448 of the EuRoC data set);
 #: - turn-on biases: datasheet zero-rate and zero-g offsets are ±0.5–3 °/s and ±20–80 mg
 #:   before calibration; the preset assumes a one-time calibration that leaves about a
 #:   tenth of that: 0.1 °/s = 360 °/h and 5 mg (an assumption, stated as such).
@@ -487,7 +535,8 @@ class MemsImuData:
     interpolated : numpy.ndarray of bool, shape (N,)
         All False: every reading is generated, none fills a dropout.
     accel_bias, gyro_bias : numpy.ndarray, shape (N, 3)
-        The simulated biases b_a (m/s²) and b_ω (rad/s) at each sample.
+        The simulated biases b_a (m/s²) and b_ω (rad/s) at each sample: the turn-on bias
+        (row 0) plus the Gauss–Markov drift (:attr:`accel_drift`, :attr:`gyro_drift`).
     accel_noise, gyro_noise : numpy.ndarray, shape (N, 3)
         The simulated white noise n_a (m/s²) and n_ω (rad/s) of each sample.
     reference : ReferenceImu
@@ -521,6 +570,16 @@ class MemsImuData:
     def dt(self) -> np.ndarray:
         """Intervals t[k+1] − t[k], s, shape (N−1,)."""
         return np.diff(self.t)
+
+    @property
+    def gyro_drift(self) -> np.ndarray:
+        """d_ω = b_ω − b_ω[0], rad/s (N, 3): the gyroscope bias's Gauss–Markov drift (0 at t[0])."""
+        return self.gyro_bias - self.gyro_bias[0]
+
+    @property
+    def accel_drift(self) -> np.ndarray:
+        """d_a = b_a − b_a[0], m/s² (N, 3): the accelerometer bias's Gauss–Markov drift (0 at t[0])."""
+        return self.accel_bias - self.accel_bias[0]
 
     @property
     def truth(self) -> SmoothTruth:
@@ -557,9 +616,73 @@ class MemsImuData:
         return interp(self.accel_bias), interp(self.gyro_bias)
 
 
+#: Longest stretch, in correlation times, that :func:`gauss_markov_drift` sums in closed
+#: form: the factors exp(±s) it uses stay within e^±30.
+_GM_BLOCK = 30.0
+
+
+def gauss_markov_drift(t, sigma: float, time_constant: float, normals) -> np.ndarray:
+    """A first-order Gauss–Markov drift at irregular times, started at zero, exactly discretised.
+
+    Per column, with φ_k = exp(−(t[k+1] − t[k]) / τ)::
+
+        d_0 = 0,   d_{k+1} = φ_k d_k + σ √(1 − φ_k²) n_k
+
+    the exact discrete form of ḃ = −b/τ + w, E[w w′] = (2σ²/τ) δ, for every step length.
+    Its variance is σ² (1 − exp(−2 (t_k − t_0) / τ)): it grows like a random walk of
+    density σ √(2/τ) while t_k − t_0 ≪ τ and levels off at σ² after a few τ. Values Δt
+    apart (once levelled off) correlate by exp(−Δt/τ).
+
+    The recursion is evaluated in closed form over blocks of at most 30 τ,
+    d_k = e^{−s_k} (d_a + Σ_{a ≤ j < k} σ √(1 − φ_j²) n_j e^{s_{j+1}}) with
+    s_k = (t_k − t_a)/τ from the block's first time t_a, so long records need no Python
+    loop over samples; it equals the recursion to rounding.
+
+    Parameters
+    ----------
+    t : array_like, shape (N,)
+        Strictly increasing times, s.
+    sigma : float
+        σ, the stationary standard deviation (> 0), in the drift's unit.
+    time_constant : float
+        τ, s (> 0).
+    normals : array_like, shape (N − 1, m)
+        The standard normal draws n_k, one row per step.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N, m)
+        d at the times t; row 0 is zero.
+    """
+    t = as_rows(t, "t")
+    if len(t) < 2 or (np.diff(t) <= 0.0).any():
+        raise ValueError("t must hold at least 2 strictly increasing times")
+    sigma = as_scalar(sigma, "sigma")
+    tau = as_scalar(time_constant, "time_constant")
+    n = np.asarray(normals, dtype=float)
+    if n.ndim != 2 or n.shape[0] != len(t) - 1 or not np.isfinite(n).all():
+        raise ValueError(f"normals must be a finite array of shape ({len(t) - 1}, m), got "
+                         f"{getattr(n, 'shape', None)}")
+    elapsed = (t - t[0]) / tau
+    step = np.diff(elapsed)
+    w = sigma * np.sqrt(-np.expm1(-2.0 * step))[:, None] * n        # σ √(1 − φ²) n
+    d = np.zeros((len(t), n.shape[1]))
+    a, last = 0, len(t) - 1
+    while a < last:
+        b = int(np.searchsorted(elapsed, elapsed[a] + _GM_BLOCK, side="right")) - 1
+        b = min(max(b, a + 1), last)
+        if b == a + 1:                                   # one step (possibly longer than 30 τ)
+            d[b] = math.exp(-step[a]) * d[a] + w[a]
+        else:
+            s = elapsed[a + 1:b + 1] - elapsed[a]
+            d[a + 1:b + 1] = (d[a] + np.cumsum(w[a:b] * np.exp(s)[:, None], axis=0)) * np.exp(-s)[:, None]
+        a = b
+    return d
+
+
 def simulate_mems_imu(source, spec: MemsSpec = CONSUMER_MEMS, seed: int = 0, *,
                       knot_spacing: float = 0.3) -> MemsImuData:
-    """Read the KITTI motion with a simulated MEMS IMU: reference + random-walk bias + white noise.
+    """Read the KITTI motion with a simulated MEMS IMU: reference + Gauss–Markov bias + white noise.
 
     Parameters
     ----------
@@ -570,17 +693,19 @@ def simulate_mems_imu(source, spec: MemsSpec = CONSUMER_MEMS, seed: int = 0, *,
         The errors, in datasheet units (default :data:`CONSUMER_MEMS`).
     seed : int
         Seed of ``numpy.random.default_rng``. Draws, in this order, all standard normal:
-        gyro turn-on bias (3,), accel turn-on bias (3,), gyro bias increments (N−1, 3),
-        accel bias increments (N−1, 3), gyro white noise (N, 3), accel white noise (N, 3).
+        gyro turn-on bias (3,), accel turn-on bias (3,), gyro drift innovations (N−1, 3),
+        accel drift innovations (N−1, 3), gyro white noise (N, 3), accel white noise (N, 3).
     knot_spacing : float
         Passed to :func:`reference_imu` when ``source`` is an excerpt.
 
     Returns
     -------
     MemsImuData
-        Per sample k, with dt_k = t[k+1] − t[k] and dt_nom the median of dt:
-        b_0 = σ_turn-on · N(0, I), b_{k+1} = b_k + σ_b √dt_k · N(0, I),
-        n_k = σ_n / √dt_nom · N(0, I), reading = reference + b_k + n_k.
+        Per sample k, with dt_k = t[k+1] − t[k], φ_k = exp(−dt_k/τ) and dt_nom the median
+        of dt: b_k = b_0 + d_k with b_0 = σ_turn-on · N(0, I), d_0 = 0 and
+        d_{k+1} = φ_k d_k + σ_b √(1 − φ_k²) · N(0, I) (:func:`gauss_markov_drift`, σ_b the
+        bias instability, τ its correlation time), n_k = σ_n / √dt_nom · N(0, I),
+        reading = reference + b_k + n_k.
 
     Raises
     ------
@@ -594,26 +719,19 @@ def simulate_mems_imu(source, spec: MemsSpec = CONSUMER_MEMS, seed: int = 0, *,
     ref = source if isinstance(source, ReferenceImu) else reference_imu(source, knot_spacing)
     t = ref.t
     n = len(t)
-    dt = np.diff(t)
-    dt_nom = float(np.median(dt))
+    dt_nom = float(np.median(np.diff(t)))
 
     rng = np.random.default_rng(seed)
     gyro_b0 = spec.gyro_turn_on * rng.standard_normal(3)
     accel_b0 = spec.accel_turn_on * rng.standard_normal(3)
-    gyro_steps = spec.gyro_bias_density * np.sqrt(dt)[:, None] * rng.standard_normal((n - 1, 3))
-    accel_steps = spec.accel_bias_density * np.sqrt(dt)[:, None] * rng.standard_normal((n - 1, 3))
+    gyro_drift = gauss_markov_drift(t, spec.gyro_bias_sigma, spec.gyro_bias_time_s, rng.standard_normal((n - 1, 3)))
+    accel_drift = gauss_markov_drift(t, spec.accel_bias_sigma, spec.accel_bias_time_s,
+                                     rng.standard_normal((n - 1, 3)))
     gyro_noise = spec.gyro_noise_density / math.sqrt(dt_nom) * rng.standard_normal((n, 3))
     accel_noise = spec.accel_noise_density / math.sqrt(dt_nom) * rng.standard_normal((n, 3))
 
-    def walk(b0, steps):
-        b = np.empty((n, 3))
-        b[0] = b0
-        np.cumsum(steps, axis=0, out=b[1:])
-        b[1:] += b0
-        return b
-
-    gyro_bias = walk(gyro_b0, gyro_steps)
-    accel_bias = walk(accel_b0, accel_steps)
+    gyro_bias = gyro_b0 + gyro_drift
+    accel_bias = accel_b0 + accel_drift
     return MemsImuData(t, ref.specific_force + accel_bias + accel_noise, ref.angular_rate + gyro_bias + gyro_noise,
                        np.zeros(n, dtype=bool), accel_bias, gyro_bias, accel_noise, gyro_noise, ref, spec, seed,
                        dt_nom)
