@@ -5,8 +5,13 @@ Each function here computes what one picture shows, with the filters of the laye
 
 - chapter 01: :func:`truncated_normal_moments`, the moments of a Gaussian prior cut off
   by the ends of a grid;
-- chapter 02: :func:`information_trial`, one linear-Gaussian update repeated over runs
-  and seeds, scored against truths the estimator does not see (:class:`InformationTrial`);
+- chapter 02: :func:`correlated_pair_covariance` and :func:`scalar_conditioning` (two
+  correlated scalars conditioned by hand, each step proved by SymPy), :func:`window_slice`
+  (their Monte Carlo check, :class:`WindowSlice`), :func:`ellipse_highest_point` (where the
+  regression line meets an ellipse), :func:`check_chain` and :class:`Folded` (a hand-written
+  chain of steps proved by SymPy, SymPy's own output folded away);
+  :func:`information_trial`, one linear-Gaussian update repeated over runs and seeds,
+  scored against truths the estimator does not see (:class:`InformationTrial`);
 - chapter 03: :func:`kf_1d_table`, a scalar Kalman filter whose every number a learner
   can check by hand (:class:`KF1DTable`); :func:`scalar_gain`, the gain as a function of
   the prior and measurement variances; :func:`steady_state`, the covariance and gain a
@@ -24,10 +29,13 @@ The figures themselves are drawn by :mod:`kalman_course.plotting.intuition`.
 
 from __future__ import annotations
 
+import functools
+import html
 from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+import sympy as sp
 
 from kalman_course import symbolic
 from kalman_course.core.angles import wrap_angle
@@ -36,10 +44,13 @@ from kalman_course.core.validation import (as_covariance, as_matrix, as_real_arr
                                            as_vector)
 from kalman_course.filters.ekf import iekf_update
 from kalman_course.filters.kf import innovation_covariance, kf_gain, kf_predict, kf_update, run_kf
+from kalman_course.symbolic.equations import Derivation, Equation
 
 __all__ = ["KF1DTable", "kf_1d_table", "scalar_gain", "SteadyState", "steady_state", "RadarCloud",
            "cross_range_covariance", "radar_cloud", "map_cost", "gauss_newton_cost", "cost_on_plane", "iekf_iterates",
-           "truncated_normal_moments", "InformationTrial", "information_trial"]
+           "truncated_normal_moments", "InformationTrial", "information_trial",
+           "correlated_pair_covariance", "scalar_conditioning", "WindowSlice", "window_slice",
+           "ellipse_highest_point", "ChainCheck", "check_chain", "Folded"]
 
 
 # --------------------------------------------------------------------------------------
@@ -650,3 +661,367 @@ def information_trial(mu, P_check, G, R, *, seeds, n_runs=500, bias=None, R_true
     return InformationTrial(seeds=seeds, prior_sq_error=np.array(prior_sq), posterior_sq_error=np.array(post_sq),
                             prior_trace=float(np.trace(P_check)), posterior_trace=float(np.trace(P_hat)),
                             covariance_drop=np.linalg.eigvalsh(0.5 * ((P_check - P_hat) + (P_check - P_hat).T)))
+
+
+# --------------------------------------------------------------------------------------
+# chapter 02: conditioning two scalars before the block algebra, and folding SymPy's output
+# --------------------------------------------------------------------------------------
+
+def correlated_pair_covariance(sigma_x, sigma_y, rho) -> np.ndarray:
+    """The covariance matrix of two scalars x and y with given spreads and correlation.
+
+    Parameters
+    ----------
+    sigma_x, sigma_y : float
+        Standard deviations σ_x of x and σ_y of y (> 0).
+    rho : float
+        Correlation coefficient ρ of x and y, strictly between −1 and 1 (at ±1 the pair lies
+        on a line and has no density).
+
+    Returns
+    -------
+    ndarray, shape (2, 2)
+        ``[[σ_x², ρ σ_x σ_y], [ρ σ_x σ_y, σ_y²]]``, the order being (x, y).
+
+    Raises
+    ------
+    ValueError
+        Naming the argument: a standard deviation that is not a positive number, a ``rho``
+        that is not a finite number in (−1, 1).
+    """
+    sx = as_scalar(sigma_x, "sigma_x")
+    sy = as_scalar(sigma_y, "sigma_y")
+    r = float(as_vector([rho], "rho", 1)[0])
+    if not -1.0 < r < 1.0:
+        raise ValueError(f"rho must lie strictly between -1 and 1, got {rho!r}")
+    cross = r * sx * sy
+    return np.array([[sx * sx, cross], [cross, sy * sy]])
+
+
+@functools.lru_cache(maxsize=None)
+def scalar_conditioning():
+    """SymPy's check of p(x | y) for two jointly Gaussian scalars, step by step.
+
+    The route is the one lecture 02 writes out before any block matrix: split
+    :math:`x - \\mu_x = a (y - \\mu_y) + w`, choose a so that w and y are uncorrelated
+    (hence independent, the pair being jointly Gaussian), and read the conditional off:
+
+    .. math::
+
+        a = \\rho\\,\\sigma_x / \\sigma_y, \\qquad
+        \\mu_{x|y} = \\mu_x + a (y - \\mu_y), \\qquad
+        \\sigma^2_{x|y} = \\operatorname{Var} w = \\sigma_x^2 (1 - \\rho^2).
+
+    Two further identities close the loop: the general block formula of the lecture's
+    section 4 with 1 × 1 blocks gives the same mean and variance, and the joint exponent
+    and determinant split into the conditional's times the marginal's (which proves the
+    factorisation without the independence argument).
+
+    Returns
+    -------
+    kalman_course.symbolic.equations.Derivation
+        Name ``"scalar_conditioning"``; ``verify()`` proves every identity. Symbols for
+        ``evaluate``: ``mu_x``, ``mu_y``, ``sigma_x``, ``sigma_y``, ``rho``, ``y``; results
+        ``"slope"`` (a), ``"mean"`` (μ_{x|y}) and ``"var"`` (σ²_{x|y}), each a scalar.
+    """
+    x, y, mu_x, mu_y, a, w = sp.symbols("x y mu_x mu_y a w", real=True)
+    sigma_x, sigma_y = sp.symbols("sigma_x sigma_y", positive=True)
+    rho = sp.Symbol("rho", real=True)
+    cross = rho * sigma_x * sigma_y
+    Sigma = sp.Matrix([[sigma_x**2, cross], [cross, sigma_y**2]])
+    # w = c · [x − μ_x, y − μ_y]: its covariances follow from Σ by bilinearity
+    c = sp.Matrix([[1, -a]])
+    picks_y = sp.Matrix([0, 1])
+    cov_wy = (c * Sigma * picks_y)[0, 0]
+    c_at_slope = c.subs(a, rho * sigma_x / sigma_y)
+    solved = sp.solve(sp.Eq(cov_wy, 0), a)
+    if len(solved) != 1:
+        raise RuntimeError(f"Cov(w, y) = 0 should fix a uniquely, SymPy found {solved}")
+    slope = rho * sigma_x / sigma_y
+    mean = mu_x + slope * (y - mu_y)
+    var = sigma_x**2 * (1 - rho**2)
+
+    # section 4's general result with every block 1 × 1
+    general = symbolic.gaussian_conditioning()
+    S = general.symbols
+    dims = {S["n"]: 1, S["m"]: 1}
+    one = {S[k].subs(dims): sp.Matrix([[v]]) for k, v in
+           (("mu_x", mu_x), ("mu_y", mu_y), ("Sigma_xx", sigma_x**2), ("Sigma_xy", cross),
+            ("Sigma_yy", sigma_y**2), ("y", y))}
+    block_mean = general.results["mean"].subs(dims).xreplace(one)
+    block_cov = general.results["cov"].subs(dims).xreplace(one)
+
+    e = sp.Matrix([x - mu_x, y - mu_y])
+    equations = (
+        Equation("split", w, (x - mu_x) - a * (y - mu_y),
+                 "the part of $x - \\mu_x$ that a multiple of $y - \\mu_y$ does not explain", "definition"),
+        Equation("cov_wy", sp.MatMul(c, Sigma, picks_y, evaluate=False), sp.Matrix([[cross - a * sigma_y**2]]),
+                 "$\\operatorname{Cov}(w, y) = \\rho\\sigma_x\\sigma_y - a\\sigma_y^2$, from $\\Sigma$ by bilinearity"),
+        Equation("slope", solved[0], slope,
+                 "$\\operatorname{Cov}(w, y) = 0$ exactly when $a = \\rho\\sigma_x/\\sigma_y$"),
+        Equation("var_w_any_a", sp.MatMul(c, Sigma, c.T, evaluate=False),
+                 sp.Matrix([[sigma_x**2 - 2 * a * rho * sigma_x * sigma_y + a**2 * sigma_y**2]]),
+                 "$\\operatorname{Var} w = \\sigma_x^2 - 2a\\rho\\sigma_x\\sigma_y + a^2\\sigma_y^2$ for any $a$"),
+        Equation("var_w", sp.MatMul(c_at_slope, Sigma, c_at_slope.T, evaluate=False), sp.Matrix([[var]]),
+                 "with that $a$, $\\operatorname{Var} w = \\sigma_x^2(1 - \\rho^2)$"),
+        Equation("mean_from_blocks", block_mean, sp.Matrix([[mean]]),
+                 "the block formula's mean with $1 \\times 1$ blocks is the same"),
+        Equation("var_from_blocks", block_cov, sp.Matrix([[var]]),
+                 "the block formula's covariance with $1 \\times 1$ blocks is the same"),
+        Equation("exponent_split", (e.T * Sigma.inv() * e)[0, 0],
+                 (x - mean) ** 2 / var + (y - mu_y) ** 2 / sigma_y**2,
+                 "the joint exponent (SymPy's own inverse of $\\Sigma$) is the conditional's plus the marginal's"),
+        Equation("determinant_split", Sigma.det(), var * sigma_y**2,
+                 "$\\det\\Sigma = \\sigma^2_{x|y}\\,\\sigma_y^2$, so the normalising constants split too"),
+    )
+    return Derivation(
+        name="scalar_conditioning",
+        title="Conditioning two jointly Gaussian scalars",
+        model=("$x \\sim \\mathcal N(\\mu_x, \\sigma_x^2)$ and $y \\sim \\mathcal N(\\mu_y, \\sigma_y^2)$ jointly "
+               "Gaussian with correlation $\\rho$, $|\\rho| < 1$."),
+        equations=equations,
+        symbols=dict(mu_x=mu_x, mu_y=mu_y, sigma_x=sigma_x, sigma_y=sigma_y, rho=rho, y=y),
+        results=dict(slope=slope, mean=mean, var=var),
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class WindowSlice:
+    """The samples of a joint (x, y) whose y falls within a narrow window around y_obs.
+
+    A Monte Carlo stand-in for p(x | y = y_obs): only approximately, because inside the
+    window y still varies a little. With a conditional mean linear in y (slope a), that
+    spread shifts the window's mean of x by a (ȳ − y_obs) and widens its variance by
+    a² Var(y | window); :meth:`mean_tolerance` and :meth:`var_tolerance` allow for both.
+
+    Attributes
+    ----------
+    y_obs, half_width : float
+        The window is ``|y − y_obs| < half_width``.
+    x : ndarray, shape (K,)
+        The x of the K samples inside it.
+    y_offset : float
+        Mean of their y minus y_obs.
+    y_spread : float
+        Mean of their (y − y_obs)², at most half_width².
+    """
+
+    y_obs: float
+    half_width: float
+    x: np.ndarray
+    y_offset: float
+    y_spread: float
+
+    @property
+    def n(self) -> int:
+        """Number of samples in the window, K."""
+        return int(self.x.shape[0])
+
+    @property
+    def x_mean(self) -> float:
+        """Sample mean of x in the window."""
+        return float(np.mean(self.x))
+
+    @property
+    def x_var(self) -> float:
+        """Sample variance of x in the window (divided by K − 1)."""
+        return float(np.var(self.x, ddof=1))
+
+    def mean_tolerance(self, slope, n_se=4.0) -> float:
+        """How far the window's mean may sit from μ_{x|y} if the formula is right.
+
+        ``n_se`` standard errors of a mean, √(s²/K), plus |a| |ȳ − y_obs| for the window's
+        own offset; ``slope`` is a, the slope of E[x | y] in y.
+        """
+        a = float(as_vector([slope], "slope", 1)[0])
+        k = as_scalar(n_se, "n_se")
+        return k * float(np.sqrt(self.x_var / self.n)) + abs(a) * abs(self.y_offset)
+
+    def var_tolerance(self, slope, n_se=4.0) -> float:
+        """How far the window's variance may sit from σ²_{x|y} if the formula is right.
+
+        ``n_se`` standard errors of a Gaussian sample variance, s² √(2 / (K − 1)), plus
+        a² times the window's spread in y (the widening it causes).
+        """
+        a = float(as_vector([slope], "slope", 1)[0])
+        k = as_scalar(n_se, "n_se")
+        return k * self.x_var * float(np.sqrt(2.0 / (self.n - 1))) + a * a * self.y_spread
+
+
+def window_slice(samples, y_obs, half_width) -> WindowSlice:
+    """Keep the samples of (x, y) whose y lies within ``half_width`` of ``y_obs``.
+
+    Parameters
+    ----------
+    samples : array_like, shape (N, 2)
+        Draws of the joint, one (x, y) per row.
+    y_obs : float
+        The observed value of y.
+    half_width : float
+        Half the window's width (> 0), in the units of y.
+
+    Returns
+    -------
+    WindowSlice
+
+    Raises
+    ------
+    ValueError
+        Naming the argument: ``samples`` not a finite (N, 2) array, a non-finite ``y_obs``,
+        a ``half_width`` that is not positive, or a window holding fewer than two samples.
+    """
+    pts = as_real_array(samples, "samples")
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise ValueError(f"samples must have shape (N, 2), one (x, y) per row, got {pts.shape}")
+    if not np.all(np.isfinite(pts)):
+        raise ValueError("samples must be finite")
+    y0 = float(as_vector([y_obs], "y_obs", 1)[0])
+    h = as_scalar(half_width, "half_width")
+    inside = np.abs(pts[:, 1] - y0) < h
+    if inside.sum() < 2:
+        raise ValueError(f"half_width={h:g} keeps {int(inside.sum())} samples around y_obs={y0:g}; "
+                         "widen it or draw more samples")
+    dy = pts[inside, 1] - y0
+    return WindowSlice(y_obs=y0, half_width=h, x=pts[inside, 0].copy(), y_offset=float(np.mean(dy)),
+                       y_spread=float(np.mean(dy * dy)))
+
+
+def ellipse_highest_point(mean, cov, n_sigma, n_points=100_001) -> np.ndarray:
+    """The point of a 2-D Gaussian's ``n_sigma`` ellipse with the largest second coordinate.
+
+    Found numerically: ``n_points`` points μ + k L [cos t, sin t] of the boundary (L the
+    Cholesky factor of Σ), then the highest one, so the answer does not lean on any formula
+    for the conditional.
+
+    Parameters
+    ----------
+    mean : array_like, shape (2,)
+        Centre μ.
+    cov : array_like, shape (2, 2)
+        Covariance Σ, symmetric positive definite.
+    n_sigma : float
+        Mahalanobis radius k (> 0).
+    n_points : int
+        Points on the boundary (>= 8); the answer is good to about 2π k σ / n_points.
+
+    Returns
+    -------
+    ndarray, shape (2,)
+    """
+    mean = as_vector(mean, "mean", 2)
+    cov = as_covariance(cov, "cov", 2, positive_definite=True)
+    k = as_scalar(n_sigma, "n_sigma")
+    if isinstance(n_points, bool) or not isinstance(n_points, (int, np.integer)) or n_points < 8:
+        raise ValueError(f"n_points must be an integer >= 8, got {n_points!r}")
+    t = np.linspace(0.0, 2 * np.pi, int(n_points), endpoint=False)
+    boundary = mean + k * np.column_stack([np.cos(t), np.sin(t)]) @ np.linalg.cholesky(cov).T
+    return boundary[np.argmax(boundary[:, 1])]
+
+
+@dataclass(frozen=True, eq=False)
+class ChainCheck:
+    """Which SymPy identities prove each line of a derivation written out by hand.
+
+    Attributes
+    ----------
+    name : str
+        The derivation's name.
+    rows : tuple of (str, tuple of str, bool)
+        One per written step: its text, the labels of the identities behind it, and
+        whether SymPy proves all of them.
+    unnamed : tuple of str
+        Identities the derivation proves that no written step names.
+    """
+
+    name: str
+    rows: tuple
+    unnamed: tuple
+
+    @property
+    def all_hold(self) -> bool:
+        """True if every written step is proved."""
+        return all(ok for _, _, ok in self.rows)
+
+    def to_text(self) -> str:
+        """One line per step: 'proved' or 'FAILS', the step, the SymPy labels."""
+        width = max(len(step) for step, _, _ in self.rows)
+        lines = [f"{'proved' if ok else 'FAILS ':6s}  {step:{width}s}  <- {', '.join(labels)}"
+                 for step, labels, ok in self.rows]
+        if self.unnamed:
+            lines.append(f"not named by any step: {', '.join(self.unnamed)}")
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.to_text()
+
+
+def check_chain(derivation, steps) -> ChainCheck:
+    """Prove the identities behind each line of a hand-written chain of steps.
+
+    Parameters
+    ----------
+    derivation : kalman_course.symbolic.equations.Derivation
+        The SymPy derivation the chain summarises.
+    steps : mapping of str to sequence of str
+        For each written step, in reading order, the labels of the identities or checks
+        of ``derivation`` that prove it (definitions prove nothing and are refused).
+
+    Returns
+    -------
+    ChainCheck
+
+    Raises
+    ------
+    ValueError
+        Naming ``steps``: empty, a step with no label, a label the derivation lacks, or a
+        label that is a definition.
+    """
+    if not isinstance(derivation, Derivation):
+        raise ValueError(f"derivation must be a Derivation, got {type(derivation).__name__}")
+    if not hasattr(steps, "items") or not steps:
+        raise ValueError("steps must be a non-empty mapping from a written step to SymPy labels")
+    rows, named = [], set()
+    for step, labels in steps.items():
+        labels = (labels,) if isinstance(labels, str) else tuple(labels)
+        if not labels:
+            raise ValueError(f"steps: {step!r} names no identity")
+        for label in labels:
+            if label not in derivation.labels:
+                raise ValueError(f"steps: {step!r} names {label!r}, which {derivation.name!r} lacks; "
+                                 f"labels: {derivation.labels}")
+            if not derivation[label].checked:
+                raise ValueError(f"steps: {step!r} names {label!r}, a definition, which proves nothing")
+        named.update(labels)
+        rows.append((str(step), labels, all(derivation[label].holds() for label in labels)))
+    unnamed = tuple(e.label for e in derivation.equations if e.checked and e.label not in named)
+    return ChainCheck(name=derivation.name, rows=tuple(rows), unnamed=unnamed)
+
+
+class Folded:
+    """A derivation shown folded: a one-line summary that opens to SymPy's full Markdown.
+
+    Displayed in a notebook as an HTML ``<details>`` element, closed until clicked.
+
+    Parameters
+    ----------
+    derivation : kalman_course.symbolic.equations.Derivation
+        What to fold.
+    summary : str
+        The text shown while it is closed.
+    """
+
+    def __init__(self, derivation, summary: str):
+        if not isinstance(derivation, Derivation):
+            raise ValueError(f"derivation must be a Derivation, got {type(derivation).__name__}")
+        if not isinstance(summary, str) or not summary.strip():
+            raise ValueError("summary must be a non-empty string")
+        self.derivation = derivation
+        self.summary = summary.strip()
+
+    def _repr_markdown_(self) -> str:
+        # blank lines around the body: Markdown inside an HTML block is parsed only after one
+        return (f"<details>\n<summary>{html.escape(self.summary, quote=False)}</summary>\n\n"
+                f"{self.derivation.to_markdown()}\n</details>\n")
+
+    def __repr__(self) -> str:
+        return f"{self.summary} (folded; {self.derivation!r})"

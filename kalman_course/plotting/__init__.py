@@ -25,7 +25,7 @@ from kalman_course.plotting.vocabulary import (COLORS, CURVE_COLORS, covariance_
                                                plot_estimate, plot_measurements, plot_samples, plot_sigma_band,
                                                plot_track, plot_truth, shade_spans)
 from kalman_course.plotting.bayes import plot_belief_sequence
-from kalman_course.plotting.gaussians import plot_conditioning
+from kalman_course.plotting.gaussians import plot_conditional_slice, plot_conditioning
 from kalman_course.plotting.kf import plot_innovations, plot_kf_1d, plot_kf_2d
 from kalman_course.plotting.eskf import (plot_bias_estimates, plot_bias_sigmas, plot_error_norms, plot_outage_error,
                                          plot_pose_errors, plot_track_with_zoom)
@@ -47,7 +47,8 @@ __all__ = [
     "plot_samples", "plot_consistency", "plot_consistency_curves", "plot_curves", "plot_track",
     "shade_spans", "flag_spans",
     # chapters
-    "plot_belief_sequence", "plot_conditioning", "plot_kf_1d", "plot_kf_2d", "plot_innovations",
+    "plot_belief_sequence", "plot_conditioning", "plot_conditional_slice", "plot_kf_1d", "plot_kf_2d",
+    "plot_innovations",
     "plot_track_with_zoom", "plot_pose_errors", "plot_bias_estimates", "plot_bias_sigmas",
     "plot_outage_error", "plot_error_norms",
     "plot_monte_carlo", "plot_sensitivity", "plot_gating",
