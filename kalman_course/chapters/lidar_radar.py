@@ -176,6 +176,18 @@ def _split_by_sensor(sensor: np.ndarray):
 # the seeded scenario
 # ---------------------------------------------------------------------------------------
 
+def _measure(x: np.ndarray, rng, R_l: np.ndarray, R_r: np.ndarray):
+    """Alternate lidar and radar measurements of the states x (n, 5), lidar first; lidar noise drawn first."""
+    sensor = np.where(np.arange(len(x)) % 2 == 0, "lidar", "radar")
+    lidar_index, radar_index = _split_by_sensor(sensor)
+    lidar_noise = rng.standard_normal((len(lidar_index), 2)) @ np.linalg.cholesky(R_l).T
+    radar_noise = rng.standard_normal((len(radar_index), 3)) @ np.linalg.cholesky(R_r).T
+    lidar_z = x[lidar_index, :2] + lidar_noise
+    radar_z = np.array([symbolic.radar_observation(state) for state in x[radar_index]]) + radar_noise
+    radar_z[:, 1] = wrap_angle(radar_z[:, 1])
+    return sensor, lidar_index, lidar_z, radar_index, radar_z
+
+
 def ctrv_lidar_radar(seed: int, duration: float = 25.0, dt: float = 0.05, sigma_a: float = 3.0,
                      sigma_yaw_acc: float = 0.3, R_lidar=R_LIDAR_DEFAULT, R_radar=R_RADAR_DEFAULT,
                      x0=(5.0, 2.0, 5.0, 0.5, 0.1)) -> CTRVScenario:
@@ -230,13 +242,7 @@ def ctrv_lidar_radar(seed: int, duration: float = 25.0, dt: float = 0.05, sigma_
         state = symbolic.ctrv_step(state, dt, nu[k])
         x[k] = state
     t = dt * np.arange(1, n + 1)
-    sensor = np.where(np.arange(n) % 2 == 0, "lidar", "radar")
-    lidar_index, radar_index = _split_by_sensor(sensor)
-    lidar_noise = rng.standard_normal((len(lidar_index), 2)) @ np.linalg.cholesky(R_l).T
-    radar_noise = rng.standard_normal((len(radar_index), 3)) @ np.linalg.cholesky(R_r).T
-    lidar_z = x[lidar_index, :2] + lidar_noise
-    radar_z = np.array([symbolic.radar_observation(x[k]) for k in radar_index]) + radar_noise
-    radar_z[:, 1] = wrap_angle(radar_z[:, 1])
+    sensor, lidar_index, lidar_z, radar_index, radar_z = _measure(x, rng, R_l, R_r)
     return CTRVScenario(t, x, sensor, lidar_index, lidar_z, radar_index, radar_z, R_l, R_r, sigma_a,
                         sigma_yaw_acc, dt=dt, x0=x0.copy(), seed=seed)
 
@@ -299,13 +305,7 @@ def figure_eight_lidar_radar(seed: int, duration: float = 25.0, dt: float = 0.05
     yaw_rate = (vel[:, 0] * acc[:, 1] - vel[:, 1] * acc[:, 0]) / speed**2
     states = np.column_stack([pos, speed, yaw, yaw_rate])
     x, t = states[1:], t_all[1:]
-    sensor = np.where(np.arange(n) % 2 == 0, "lidar", "radar")
-    lidar_index, radar_index = _split_by_sensor(sensor)
-    lidar_noise = rng.standard_normal((len(lidar_index), 2)) @ np.linalg.cholesky(R_l).T
-    radar_noise = rng.standard_normal((len(radar_index), 3)) @ np.linalg.cholesky(R_r).T
-    lidar_z = x[lidar_index, :2] + lidar_noise
-    radar_z = np.array([symbolic.radar_observation(x[k]) for k in radar_index]) + radar_noise
-    radar_z[:, 1] = wrap_angle(radar_z[:, 1])
+    sensor, lidar_index, lidar_z, radar_index, radar_z = _measure(x, rng, R_l, R_r)
     return CTRVScenario(t, x, sensor, lidar_index, lidar_z, radar_index, radar_z, R_l, R_r, sigma_a,
                         sigma_yaw_acc, dt=dt, x0=states[0].copy(), seed=seed)
 
