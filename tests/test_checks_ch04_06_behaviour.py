@@ -206,3 +206,115 @@ def test_a_heading_wrapped_into_minus_pi_pi_passes():
         out[3] = wrap_angle(out[3])
         return out
     motion.check_ctrv_step.judge(ctrv_step)
+
+
+# ---- ekf_update: entries of y that were not measured (NaN) ------------------------------------
+
+def _update_measured(x_check, P_check, y, g, G, R, residual):
+    """The EKF update of the measured entries, written in information form (another formula
+    than the check's reference, which is the library's gain form on the reduced case)."""
+    measured = np.isfinite(y)
+    if not measured.any():
+        return np.array(x_check, dtype=float), np.array(P_check, dtype=float)
+    y_pred = np.asarray(g(x_check), dtype=float)
+    r = np.asarray(residual(np.where(measured, y, y_pred), y_pred), dtype=float)[measured]
+    Gm = np.asarray(G(x_check), dtype=float)[measured]
+    R_inv = np.linalg.inv(np.asarray(R, dtype=float)[np.ix_(measured, measured)])
+    P_hat = np.linalg.inv(np.linalg.inv(P_check) + Gm.T @ R_inv @ Gm)
+    return x_check + P_hat @ Gm.T @ R_inv @ r, P_hat
+
+
+def test_the_missing_cases_cover_every_role(run_seed):
+    found = ekf.missing_update_cases()
+    counts = [int((~measured).sum()) for _, measured in found]
+    sizes = [len(measured) for _, measured in found]
+    assert 0 in [m - c for m, c in zip(sizes, counts)]                # one with nothing measured
+    assert 1 in counts                                                 # one with a single entry missing
+    assert any(1 < c < m for c, m in zip(counts, sizes))               # several missing, some measured
+    for case, measured in found:
+        y, R = case[2], case[5]
+        assert np.array_equal(np.isnan(y), ~measured)
+        # a case whose R correlates a missing entry with a measured one tells R's block from
+        # G's rows zeroed
+    assert any(np.abs(case[5][np.ix_(~measured, measured)]).max(initial=0.0) > 0 for case, measured in found
+               if measured.any())
+
+
+def test_a_range_is_missing_next_to_the_cut_in_the_fixed_cases():
+    # the entries left, [φ, ρ̇], are not where the residual looks for the bearing
+    radar = [(case, measured) for case, measured in ekf.missing_update_cases() if len(measured) == 3]
+    assert any(not measured[0] and measured[1] and abs(case[2][1]) > 3.0 for case, measured in radar)
+
+
+def test_the_missing_references_agree_with_the_information_form(run_seed):
+    start = len(ekf.ekf_update_cases())
+    for k, (case, _) in enumerate(ekf.missing_update_cases()):
+        x_ref, P_ref = ekf._ekf_reference(start + k)
+        x_info, P_info = _update_measured(*case)
+        assert np.allclose(x_ref, x_info, rtol=1e-8, atol=1e-9)
+        assert np.allclose(P_ref, P_info, rtol=1e-7, atol=1e-11)
+
+
+def test_the_information_form_with_missing_entries_passes(run_seed):
+    ekf.check_ekf_update.judge(_update_measured)
+
+
+def test_a_huge_variance_for_the_missing_entries_is_accepted():
+    def ekf_update(x_check, P_check, y, g, G, R, residual):
+        measured = np.isfinite(y)
+        y_pred = g(x_check)
+        r = residual(np.where(measured, y, y_pred), y_pred)
+        Gm = G(x_check)
+        Rm = np.array(R, dtype=float)
+        Rm[~measured, :] = Rm[:, ~measured] = 0.0
+        Rm[~measured, ~measured] = 1e12
+        K = P_check @ Gm.T @ np.linalg.inv(Gm @ P_check @ Gm.T + Rm)
+        return x_check + K @ r, (np.eye(len(x_check)) - K @ Gm) @ P_check
+    ekf.check_ekf_update.judge(ekf_update)
+
+
+def _missing_failure(ekf_update) -> str:
+    with pytest.raises(CheckFailed) as failed:
+        ekf.check_ekf_update.judge(ekf_update)
+    return str(failed.value)
+
+
+def test_zeroed_rows_of_g_with_the_whole_r_are_named():
+    def ekf_update(x_check, P_check, y, g, G, R, residual):
+        measured = np.isfinite(y)
+        y_pred = g(x_check)
+        r = residual(np.where(measured, y, y_pred), y_pred)
+        Gm = G(x_check) * measured[:, None]
+        K = P_check @ Gm.T @ np.linalg.inv(Gm @ P_check @ Gm.T + R)
+        return x_check + K @ r, (np.eye(len(x_check)) - K @ Gm) @ P_check
+    text = _missing_failure(ekf_update)
+    assert "correlations" in text and "missing (NaN)" in text and "np.ix_" not in text   # tier 1
+
+
+def test_nan_reaching_the_result_is_named():
+    def ekf_update(x_check, P_check, y, g, G, R, residual):
+        Gm = G(x_check)
+        K = P_check @ Gm.T @ np.linalg.inv(Gm @ P_check @ Gm.T + R)
+        y_pred = g(x_check)
+        r = residual(np.where(np.isfinite(y), y, y_pred), y_pred)
+        r[~np.isfinite(y)] = np.nan                 # the missing entries carried along as NaN
+        return x_check + K @ r, (np.eye(len(x_check)) - K @ Gm) @ P_check
+    assert "reached the result" in _missing_failure(ekf_update)
+
+
+def test_a_failure_with_nothing_measured_is_named():
+    def ekf_update(x_check, P_check, y, g, G, R, residual):
+        if np.isnan(y).all():
+            raise RuntimeError("nothing to update with")
+        return _update_measured(x_check, P_check, y, g, G, R, residual)
+    text = _missing_failure(ekf_update)
+    assert "RuntimeError" in text and "nothing was measured" in text
+
+
+def test_the_lectures_equations_as_they_stand_are_told_what_nan_means(run_seed):
+    def ekf_update(x_check, P_check, y, g, G, R, residual):
+        Gm = G(x_check)
+        K = P_check @ Gm.T @ np.linalg.inv(Gm @ P_check @ Gm.T + R)
+        return x_check + K @ residual(y, g(x_check)), (np.eye(len(x_check)) - K @ Gm) @ P_check
+    text = _missing_failure(ekf_update)
+    assert "must be finite" in text and "full-length vectors of numbers" in text

@@ -164,3 +164,115 @@ def test_a_short_drive_is_the_start_of_the_whole_run():
     assert all(np.array_equal(a[:2], b) for a, b in zip(whole, head))
     right = eskf_checks._drive(pieces, ex, t_end, cfg, rows=2)
     assert not eskf_checks._same_run(head, right)
+
+
+# ---- the pose residual from a map frame (exercise 08 §5) ---------------------------------
+
+@pytest.mark.parametrize("seed", [None, 7, 20261202])
+def test_the_map_frames_turn_and_shift_the_measurement_far(seed, run_seed):
+    run_seed(seed)
+    frames = eskf_checks._map_frames()
+    assert len(frames) == len(eskf_checks._residual_cases())
+    for p_map, R_map in frames:
+        assert np.allclose(R_map.T @ R_map, np.eye(3), atol=1e-12)
+        assert 0.5 <= so3.angle(R_map) <= 3.0 + 1e-9 and np.linalg.norm(p_map) > 20.0
+
+
+@pytest.mark.parametrize("seed", [None, 7])
+def test_every_map_frame_mistake_is_far_from_the_right_residual(seed, run_seed):
+    run_seed(seed)
+    for (x, p_m, R_m), (p_map, R_map) in zip(eskf_checks._residual_cases(), eskf_checks._map_frames()):
+        p_meas, R_meas = R_map.T @ (p_m - p_map), R_map.T @ R_m
+        p_nav, R_nav, position, attitude = eskf_checks._map_mistakes(x, p_meas, R_meas, p_map, R_map)
+        assert np.allclose(p_nav, p_m, atol=1e-9) and np.allclose(R_nav, R_m, atol=1e-12)
+        ref = eskf.pose_residual(x.position, x.rotation, p_m, R_m)
+        assert all(np.abs(wrong - ref[:3]).max() > 1e-2 for wrong, _ in position)
+        assert all(np.abs(wrong - ref[3:]).max() > 100 * eskf_checks._attitude_tolerance(ref[3:]) for wrong, _ in attitude)
+
+
+def test_the_lectures_residual_passes_in_the_navigation_frame_and_is_named_in_a_map_frame():
+    def pose_residual(p_check, R_check, p_meas, R_meas, p_map=np.zeros(3), R_map=np.eye(3)):
+        return np.concatenate([p_check - p_meas, so3.log(R_meas.T @ R_check)])
+
+    message = _failure(checks.eskf_pose_residual, pose_residual)
+    assert "a pose measured in a map frame" in message and "map frame" in message.split("Hint:")[1]
+    assert "p_map + R_map p_meas" not in message          # the formula waits for tier 2
+
+
+def test_a_residual_without_the_map_frames_pose_is_told_its_signature():
+    def pose_residual(p_check, R_check, p_meas, R_meas):
+        return np.concatenate([p_check - p_meas, so3.log(R_meas.T @ R_check)])
+
+    assert "takes the map frame's pose too" in _failure(checks.eskf_pose_residual, pose_residual)
+
+
+# ---- the reset in the body and in the navigation frame (exercise 08 §7) -------------------
+
+def _reset_with(body_block, navigation_block):
+    def reset_covariance(P, dx, frame="body"):
+        G = np.eye(15)
+        G[6:9, 6:9] = (body_block if frame == "body" else navigation_block)(dx[6:9])
+        return eskf_checks.symmetrise(G @ P @ G.T)
+    return reset_covariance
+
+
+def test_the_navigation_frames_reset_block_is_the_right_jacobian_of_its_injection():
+    th, h = np.array([0.04, -0.07, 0.02]), 1e-6
+    R_check = so3.exp(np.array([0.3, -0.2, 1.1]))
+    J = np.zeros((3, 3))
+    for i in range(3):
+        e = np.zeros(3)
+        e[i] = h
+        after = [so3.log((so3.exp(-th) @ R_check) @ (so3.exp(-(th + s * e)) @ R_check).T) for s in (1, -1)]
+        J[:, i] = (after[0] - after[1]) / (2 * h)
+    np.testing.assert_allclose(J, so3.right_jacobian(th), atol=1e-9)
+    assert np.abs(J - (np.eye(3) - 0.5 * so3.hat(th))).max() < th @ th
+    assert np.abs(J - (np.eye(3) + 0.5 * so3.hat(th))).max() > 0.5 * np.linalg.norm(th)
+
+
+@pytest.mark.parametrize("seed", [None, 7, 20261202])
+def test_exact_and_first_order_resets_pass_in_both_frames(seed, run_seed):
+    run_seed(seed)
+    checks.eskf_reset(_reset_with(so3.left_jacobian, so3.right_jacobian))
+    checks.eskf_reset(_reset_with(lambda th: np.eye(3) + 0.5 * so3.hat(th), lambda th: np.eye(3) - 0.5 * so3.hat(th)))
+
+
+@pytest.mark.parametrize("seed", [None, 7, 20261202])
+def test_the_wrong_frames_block_is_several_tolerances_off_in_both_frames(seed, run_seed):
+    # measured: 5.5 to 13 tolerances over the fixed cases and six run seeds; a margin of 4 is asserted
+    run_seed(seed)
+    P, steps = eskf_checks._reset_case()
+    for dx in steps:
+        th = dx[6:9]
+        tol = float(th @ th) * np.abs(P[6:9]).max()
+        for right, wrong in ((so3.left_jacobian, so3.right_jacobian), (so3.right_jacobian, so3.left_jacobian)):
+            G_right, G_wrong = np.eye(15), np.eye(15)
+            G_right[6:9, 6:9], G_wrong[6:9, 6:9] = right(th), wrong(th)
+            assert np.abs(G_right @ P @ G_right.T - G_wrong @ P @ G_wrong.T).max() > 4 * tol
+
+
+def test_the_lectures_block_in_the_navigation_frame_is_named_and_its_derivation_waits_for_tier_2():
+    first_order = lambda th: np.eye(3) + 0.5 * so3.hat(th)   # noqa: E731
+    message = _failure(checks.eskf_reset, _reset_with(first_order, first_order))
+    assert 'frame="navigation"' in message and "navigation frame's reset is not the body frame's" in message
+    assert "J_r(δθ̂) ≈ I − ½[δθ̂]×" not in message
+    hints.set_tier(2, escalate=False)
+    try:
+        assert "J_r(δθ̂) ≈ I − ½[δθ̂]×" in _failure(checks.eskf_reset, _reset_with(first_order, first_order))
+    finally:
+        hints.set_tier(1, escalate=False)
+
+
+def test_exchanged_blocks_are_named_before_either_frame_alone():
+    message = _failure(checks.eskf_reset, _reset_with(lambda th: np.eye(3) - 0.5 * so3.hat(th),
+                                                      lambda th: np.eye(3) + 0.5 * so3.hat(th)))
+    assert "wrong in both frames" in message and "exchanged" in message
+
+
+def test_a_reset_without_the_frame_is_told_its_signature():
+    def reset_covariance(P, dx):
+        G = np.eye(15)
+        G[6:9, 6:9] = np.eye(3) + 0.5 * so3.hat(dx[6:9])
+        return G @ P @ G.T
+
+    assert "takes the frame of the attitude error too" in _failure(checks.eskf_reset, reset_covariance)

@@ -10,7 +10,12 @@ two kinds of cases: the chapter 06 scenario (priors of the reference filter on K
 precise range–bearing measurements to two beacons: n = m = 4, diagonal R) and radar
 updates of a CTRV prior (n = 5, m = 3, so that a transpose changes the shape), with an
 anisotropic, correlated R and P̌ and priors on the other side of the ±π cut from the
-measurement. A case where the learner's code raises is reported only after the other
+measurement. The EKF update is also graded on measurements that lack some entries (NaN in y:
+no range rate, no range across the cut, only the range rate, nothing at all, an occluded
+beacon, one bearing missing): the reference updates with the measured entries only, and the
+hints name a missing entry kept with a residual of 0, G's rows zeroed with the whole R kept,
+the residual function called on shortened vectors, and a measurement skipped for one missing
+entry. A case where the learner's code raises is reported only after the other
 cases are judged: a transposed product gives a value where n = m, which the hints can
 name, and a numpy shape error where n ≠ m.
 
@@ -44,6 +49,7 @@ Tolerances are stated next to each comparison, with the reason.
 from __future__ import annotations
 
 import functools
+import re
 
 import numpy as np
 
@@ -932,48 +938,239 @@ def _ekf_mistakes(x_check, P_check, y, g, G, R, residual):
     return x_wrong, with_symmetrised(P_wrong)
 
 
+#: The fixed cases with entries of y missing (NaN), by their index in :func:`ekf_update_cases`
+#: and the entries left out: the radar (cases 5–8, correlated R) without its range rate (a
+#: missing Doppler reading) next to the ±π cut, without its range across the cut (the entries
+#: left, [φ, ρ̇], are not where the residual function looks for a bearing), with the range rate
+#: alone, and with nothing at all; the beacons (n = m = 4, diagonal R) with the second beacon
+#: occluded and with the first bearing missing (an odd number of entries left).
+_MISSING_FIXED = ((5, (2,)), (6, (0,)), (7, (0, 1)), (8, (0, 1, 2)), (1, (2, 3)), (2, (1,)))
+
+
+def _drawn_missing(rng) -> tuple:
+    """:data:`_MISSING_FIXED`'s roles for the drawn cases (four CTRA updates, m = 6, whose
+    heading is entry 3, then two quaternion updates, m = 4): one entry beside the heading of a
+    case across the cut, three entries (the heading among them), one entry of each quaternion
+    update, and every entry of the last CTRA case."""
+    beside = int(rng.choice([0, 1, 2, 4, 5]))
+    three = tuple(sorted({3, *rng.choice([0, 1, 2, 4, 5], size=2, replace=False).tolist()}))
+    return ((0, (beside,)), (1, three), (3, tuple(range(6))), (4, (int(rng.integers(4)),)),
+            (5, (int(rng.integers(4)),)))
+
+
+@functools.lru_cache(maxsize=None)
+def missing_update_cases():
+    """(case, measured): update cases whose measurement lacks some entries, NaN in y.
+
+    ``case`` is (x_check, P_check, y, g, G, R, residual) as in :func:`ekf_update_cases`, with
+    the missing entries of y set to NaN; ``measured`` (m,) is True where y holds a number. The
+    update must use the measured entries only, and leave the prior unchanged when none is.
+    Under a run seed the entries left out are drawn (:func:`_drawn_missing`)."""
+    complete = ekf_update_cases()
+    chosen = inputs.fixed_or_drawn(_MISSING_FIXED, _drawn_missing, "ekf.update.missing")
+    out = []
+    for k, missing in chosen:
+        x_check, P_check, y, g, G, R, residual = complete[k]
+        y = np.array(y, dtype=float)
+        y[list(missing)] = np.nan
+        out.append(((x_check, P_check, y, g, G, R, residual), np.isfinite(y)))
+    return tuple(out)
+
+
+def _reduced_case(case, measured):
+    """The update of the measured entries alone: (x_check, P_check, y, g, G, R, residual) of
+    a complete measurement of length ``measured.sum()``.
+
+    Its residual puts the two vectors back into full-length ones (numbers from g(x̌) in the
+    entries not measured, which it drops again), so that the case's residual function finds
+    each entry where it expects it."""
+    x_check, P_check, y, g, G, R, residual = case
+    base = np.asarray(g(x_check), dtype=float)
+
+    def g_measured(x):
+        return np.asarray(g(x), dtype=float)[measured]
+
+    def G_measured(x):
+        return np.asarray(G(x), dtype=float)[measured]
+
+    def residual_measured(a, b):
+        full_a, full_b = base.copy(), base.copy()
+        full_a[measured], full_b[measured] = a, b
+        return np.asarray(residual(full_a, full_b), dtype=float)[measured]
+
+    return (x_check, P_check, y[measured], g_measured, G_measured, R[np.ix_(measured, measured)], residual_measured)
+
+
+_LEFT_OUT = hints.formula(": keep the measured entries m of the residual, the rows G[m] and the block R[m][:, m]")
+
+
+def _missing_mistakes(case, measured):
+    """x̂ and P̂ of plausible wrong treatments of the missing entries, each with its hint."""
+    x_check, P_check, y, g, G, R, residual = case
+    n = len(x_check)
+    I = np.eye(n)
+    pred = np.asarray(g(x_check), dtype=float)
+    G_full = np.asarray(G(x_check), dtype=float)
+    zero = np.asarray(residual(np.where(measured, y, pred), pred), dtype=float)   # 0 where not measured
+
+    def update(Gm, Rm, r):
+        K = P_check @ Gm.T @ _inv(Gm @ P_check @ Gm.T + Rm)
+        return x_check + K @ r, (I - K @ Gm) @ P_check
+
+    as_agreed = ("an entry the sensor did not deliver (NaN in y) entered the update with a residual of 0, as if "
+                 "it had been measured and agreed with the prediction: P̂ shrinks along it and the measured "
+                 "entries' gains change. Leave the unmeasured entries out of the update (lecture 05 §2)" + _LEFT_OUT)
+    as_zero = ("a NaN of y (not measured) became the number 0, a measurement of 0 that the update believes: leave "
+               "the unmeasured entries out of the update (lecture 05 §2)" + _LEFT_OUT)
+    rows = ("zeroing the rows of G (and the residual) of the unmeasured entries keeps their noise in S, where R's "
+            "correlations with the measured entries change the gain: leave them out of R as well, its rows and its "
+            "columns" + hints.formula(": R[np.ix_(m, m)], not the whole R"))
+    x_agreed, P_agreed = update(G_full, R, zero)
+    G_zeroed = G_full.copy()
+    G_zeroed[~measured] = 0.0
+    x_rows, P_rows = update(G_zeroed, R, zero)
+    x_wrong, P_wrong = [(x_agreed, as_agreed), (x_rows, rows)], [(P_agreed, as_agreed), (P_rows, rows)]
+    with np.errstate(all="ignore"):
+        try:
+            x_as_zero = update(G_full, R, np.asarray(residual(np.nan_to_num(y), pred), dtype=float))[0]
+        except ValueError:
+            x_as_zero = None
+    if x_as_zero is not None:
+        x_wrong.append((x_as_zero, as_zero))
+    if measured.any():
+        skipped = ("some entries are missing, but the others were measured: update with those (lecture 05 §2); "
+                   "only a measurement with nothing in it leaves the prior unchanged")
+        x_wrong.append((x_check, skipped))
+        P_wrong.append((P_check, skipped))
+        # the residual function called on the shortened vectors: its entries are found by position
+        try:
+            shifted = np.asarray(residual(y[measured], pred[measured]), dtype=float)
+        except ValueError:
+            shifted = None
+        if shifted is not None and shifted.shape == (int(measured.sum()),):
+            Gm, Rm = G_full[measured], R[np.ix_(measured, measured)]
+            x_wrong.append((update(Gm, Rm, shifted)[0], _POSITIONS))
+    return x_wrong, with_symmetrised(P_wrong)
+
+
+_POSITIONS = ("the residual function finds each entry by its position (the bearing is entry 1 of [ρ, φ, ρ̇]; the "
+              "beacons' bearings are the odd entries): shortened vectors move the entries, so call it on the "
+              "full-length vectors and keep the measured entries of its result"
+              + hints.formula(": r = residual(ỹ, g(x̌))[m], ỹ holding y where measured and any number elsewhere"))
+_NAN_IN = ("y holds NaN where the sensor measured nothing, and the residual function takes full-length vectors of "
+           "numbers: give it numbers in the unmeasured entries (their residual is left out afterwards), and leave "
+           "those entries out of the update (lecture 05 §2)"
+           + hints.formula(": m = np.isfinite(y); r = residual(np.where(m, y, g(x̌)), g(x̌))[m]"))
+_NAN_OUT = ("NaN from the unmeasured entries of y reached the result: an entry the sensor did not deliver must be "
+            "left out of the update, its residual, its row of G and its row and column of R (lecture 05 §2)"
+            + _LEFT_OUT)
+_NOTHING = ("every entry of y is missing: nothing was measured, and the posterior is the prior (x̂ = x̌, P̂ = P̌); "
+            "with the measured entries kept, the update's matrices are empty (0 rows), which NumPy handles")
+_SHAPES = ("leave the unmeasured entries out in the same way everywhere: their entries of the residual, their rows "
+           "of G, and both the rows and the columns of R (lecture 05 §2)"
+           + hints.formula(": R[np.ix_(m, m)]; R[m] keeps every column"))
+
+
+def _missing_hint(exc: CheckFailed, measured) -> CheckFailed:
+    """A failure on a case with missing entries, with the likely cause named."""
+    text = str(exc)
+    if " Hint: " in text:
+        return exc
+    if not measured.any():
+        why = _NOTHING
+    elif "NaN or inf" in text and "contains" in text:
+        why = _NAN_OUT
+    elif re.search(r"finite|NaN", text):
+        why = _NAN_IN
+    elif re.search(r"pairs|even length|must have shape|got length|vector of shape", text):
+        why = _POSITIONS
+    elif re.search(r"broadcast|shape|align|dimension|matmul|size", text, re.I):
+        why = _SHAPES
+    else:
+        return exc
+    return CheckFailed(f"{text} (y with {int((~measured).sum())} of {len(measured)} entries missing). Hint: {why}")
+
+
 @functools.lru_cache(maxsize=None)
 def _ekf_reference(k: int):
-    """The reference EKF update of update case ``k``, computed once."""
-    x_check, P_check, y, g, G, R, residual = ekf_update_cases()[k]
-    return ekf.ekf_update(x_check, P_check, y, g, G, R, residual=residual)
+    """The reference EKF update (x_hat, P_hat) of update case ``k`` (the complete cases, then
+    :func:`missing_update_cases`), computed once; with nothing measured, the prior."""
+    complete = ekf_update_cases()
+    if k < len(complete):
+        x_check, P_check, y, g, G, R, residual = complete[k]
+        ref = ekf.ekf_update(x_check, P_check, y, g, G, R, residual=residual)
+        return ref.x_hat, ref.P_hat
+    case, measured = missing_update_cases()[k - len(complete)]
+    if not measured.any():
+        return np.array(case[0], dtype=float), np.array(case[1], dtype=float)
+    x_check, P_check, y, g, G, R, residual = _reduced_case(case, measured)
+    ref = ekf.ekf_update(x_check, P_check, y, g, G, R, residual=residual)
+    return ref.x_hat, ref.P_hat
+
+
+def _update_mistakes(case, measured):
+    """:func:`_ekf_mistakes` of a case (of its measured entries, when some are missing), and
+    the missing entries' own mistakes."""
+    if measured is None:
+        return _ekf_mistakes(*case)
+    x_wrong, P_wrong = _missing_mistakes(case, measured)
+    if measured.any():
+        x_reduced, P_reduced = _ekf_mistakes(*_reduced_case(case, measured))
+        x_wrong, P_wrong = x_wrong + x_reduced, P_wrong + P_reduced
+    return x_wrong, P_wrong
 
 
 @check
 def check_ekf_update(ekf_update):
-    """The learner's ``ekf_update(x_check, P_check, y, g, G, R, residual)`` → (x_hat, P_hat).
+    """The learner's ``ekf_update(x_check, P_check, y, g, G, R, residual)`` → (x_hat, P_hat),
+    where NaN entries of y were not measured.
+
+    The cases: :func:`ekf_update_cases` (complete measurements), then
+    :func:`missing_update_cases` (some entries NaN, one case with all of them): the reference
+    updates with the measured entries alone (their residual, rows of G and block of R), and a
+    measurement with nothing in it leaves the prior unchanged.
 
     Tolerances: x̂ within rtol 1e-7, atol 1e-8 m; P̂ within rtol 1e-6, atol 1e-10. Reason: an
     inverse, a solve, a Cholesky solve, the Joseph form and P̌ − K S Kᵀ agree to ≈ 1e-10
     relative here (condition numbers of S ≤ 2e5); every wrong formula in the catalogue moves
-    x̂ by ≥ 0.13 m, or an entry of P̂ by more than its own size, on some case. Under a run
-    seed the cases are :func:`ekf_update_cases`' (cond(S) < 1e5), whose functions a graded
-    kernel of chapter 05 keeps.
+    x̂ by ≥ 0.13 m, or an entry of P̂ by more than its own size, on some case. A missing entry
+    given a huge variance (say 1e12) and a residual of 0 changes the result by ≈ 1e-12
+    relative and passes; one given a residual of 0 and its own variance moves P̂ by more than
+    its size. Under a run seed the cases are :func:`ekf_update_cases`' (cond(S) < 1e5), whose
+    functions a graded kernel of chapter 05 keeps, and the entries left out are drawn.
     """
     xs, Ps, pending = [], [], None
-    for k, (x_check, P_check, y, g, G, R, residual) in enumerate(ekf_update_cases()):
+    every = [(c, None) for c in ekf_update_cases()] + list(missing_update_cases())
+    for k, (case, measured) in enumerate(every):
+        x_check, P_check, y, g, G, R, residual = case
         n, m = len(x_check), len(y)
+        size = f"n = {n} states, m = {m} measurements" + (
+            "" if measured is None else f", {int((~measured).sum())} of them missing (NaN)")
         try:
             try:
-                result = call(ekf_update, x_check, P_check, y, g, G, R, residual)
+                try:
+                    result = call(ekf_update, x_check, P_check, y, g, G, R, residual)
+                except CheckFailed as exc:
+                    raise _singular_hint(exc, "S") from None
+                result = _sequence(result, "ekf_update", 2, "(x_hat, P_hat)")
+                x_hat = expect_shape(result[0], (n,), f"x_hat ({size})")
+                P_hat = expect_shape(result[1], (n, n), f"P_hat ({size})")
             except CheckFailed as exc:
-                raise _singular_hint(exc, "S") from None
-            result = _sequence(result, "ekf_update", 2, "(x_hat, P_hat)")
-            x_hat = expect_shape(result[0], (n,), f"x_hat (n = {n} states, m = {m} measurements)")
-            P_hat = expect_shape(result[1], (n, n), f"P_hat (n = {n}, m = {m})")
+                raise (exc if measured is None else _missing_hint(exc, measured)) from None
         except CheckFailed as exc:
             # judge the other cases first: a transposed product gives a value where n = m
             # and a shape error where n ≠ m, and the value names the mistake
             pending = pending or exc
             continue
-        ref = _ekf_reference(k)
-        mistakes = functools.lru_cache(functools.partial(_ekf_mistakes, x_check, P_check, y, g, G, R, residual))
-        xs.append((x_hat, ref.x_hat, f"x_hat (n = {n} states, m = {m} measurements)", lambda f=mistakes: f()[0]))
-        Ps.append((P_hat, ref.P_hat, f"P_hat (n = {n}, m = {m})", lambda f=mistakes: f()[1]))
+        x_ref, P_ref = _ekf_reference(k)
+        mistakes = functools.lru_cache(functools.partial(_update_mistakes, case, measured))
+        xs.append((x_hat, x_ref, f"x_hat ({size})", lambda f=mistakes: f()[0]))
+        Ps.append((P_hat, P_ref, f"P_hat ({size})", lambda f=mistakes: f()[1]))
     _judge(xs, close=_allclose(1e-7, 1e-8),
-           hint="the EKF's mean update, the gain times the wrapped residual of the nonlinear model, with G at x̌ "
-                "(lecture 05 §2)" + hints.formula(": x̂ = x̌ + K r(y, g(x̌)) with K = P̌ Gᵀ (G P̌ Gᵀ + R)⁻¹"))
-    _judge(Ps, close=_allclose(1e-6, 1e-10), hint="the covariance shrinks by what the measurement taught "
+           hint="the EKF's mean update, the gain times the wrapped residual of the nonlinear model, with G at x̌, "
+                "from the measured entries of y (lecture 05 §2)"
+                + hints.formula(": x̂ = x̌ + K r(y, g(x̌)) with K = P̌ Gᵀ (G P̌ Gᵀ + R)⁻¹"))
+    _judge(Ps, close=_allclose(1e-6, 1e-10), hint="the covariance shrinks by what the measured entries taught "
                                                   "(lecture 05 §2)" + hints.formula(": P̂ = (I − K G) P̌"))
     for P_hat, *_ in Ps:
         expect_symmetric(P_hat, "P_hat")

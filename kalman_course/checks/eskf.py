@@ -19,8 +19,18 @@ attitude errors of the residual and injection cases (sizes drawn in the same fou
 3e-3 … 5e-2 rad); the time steps of the discretisation, propagation and challenge cases; the
 dense covariances P and the correlated R of the gain and update cases (the lidar σ drawn
 around the course's and the GNSS σ on both sides of 1 m), the sub-optimal gain's factor; the
-reset's δx̂ (three sizes, |δθ̂| ≤ 0.09 rad); and the quaternion pairs of the nominal-state
-EKF (attitudes at 0, in the middle and 10⁻³ … 3·10⁻² rad short of π, and a pair across π).
+reset's δx̂ (three sizes, |δθ̂| ≤ 0.09 rad); the map frames of the pose residual (made up:
+turned by 0.5–3 rad about axes near the vertical, their origins drawn within about 1 km); and
+the quaternion pairs of the nominal-state EKF (attitudes at 0, in the middle and
+10⁻³ … 3·10⁻² rad short of π, and a pair across π).
+
+The pose residual is judged twice on each case: with the measured pose in the navigation frame
+(four arguments, as the run calls it), then with the same pose expressed in a map frame
+(:data:`MAP_FRAMES`) whose origin and axes the call passes, so the lecture's navigation-frame
+residual passes the first and is named on the second. The reset is judged for the attitude
+error in the body frame (this filter's, two arguments, as the run calls it) and in the
+navigation frame (lecture 08 §1's global error, ``frame="navigation"``), whose block has the
+opposite sign; the two blocks exchanged (or Gᵀ P G, which exchanges them) are named first.
 
 The discretisation is also swept over steps from 1e-6 to 10 s (T = 1 s left out, where T, √T
 and T² coincide). Sign choices that leave B Q Bᵀ unchanged (a noise column negated, in B_t or
@@ -46,8 +56,13 @@ Tolerances (and why)
   O(|δθ|²) (at most |δθ|²/4 for the vee of R − I, |δθ|³/3 for the SVD-projected injection),
   while every sign, frame or order mistake errs by O(|δθ|) (the cases have |δθ| ≤ 0.1, so
   the margin is at least a factor 10).
-- Reset: exact G P Gᵀ with G = J_l(δθ̂), or the first-order I + ½[δθ̂]×, or anything within
-  |δθ̂|² max|P[6:9]| (any G = I + ½[δθ̂]× + O(|δθ̂|²)); the sign mistake errs by |δθ̂| max|P[6:9]|.
+- Map-frame residual: the same tolerances as in the navigation frame (the map frame's
+  rotation and shift add round-off of ~1e-13 m on origins of ~1 km); every map-frame mistake
+  errs by more than 1 cm in position or 100 attitude tolerances (tests measure it).
+- Reset: exact G P Gᵀ with G = J_l(δθ̂) (body frame) or J_r(δθ̂) (navigation frame), or the
+  first-order I ± ½[δθ̂]×, or anything within |δθ̂|² max|P[6:9]| (any G = I ± ½[δθ̂]× +
+  O(|δθ̂|²)); the other frame's block (the sign mistake) errs by about |δθ̂| max|P[6:9]|, 5.5 to
+  13 tolerances (measured over the fixed cases and six run seeds).
 - Run: positions and rotations 1e-6, P 1e-3 relative, against the reference run or a run
   rebuilt from the learner's own (checked) pieces.
 - Challenge (finite-difference transition J): 1e-5 absolute against the check's own central
@@ -541,7 +556,7 @@ def _attitude_tolerance(dtheta) -> float:
 
 @functools.lru_cache(maxsize=None)
 def _residual_cases():
-    """(nominal state, p_meas, R_meas): a measured pose near each state."""
+    """(nominal state, p_meas, R_meas): a measured pose near each state (navigation frame)."""
     rng = inputs.rng("eskf.residual", 3)
     out = []
     for (x, _, _), scale in zip(_cases(), _attitude_scales()):
@@ -550,35 +565,128 @@ def _residual_cases():
     return tuple(out)
 
 
+#: The map frames of the residual's map cases: (origin p_map (m), rotation vector of R_map (rad)) in
+#: the navigation frame, one per case of :func:`_residual_cases`: turned by 2.4, 0.9, −2.9 and 1.6
+#: rad about axes near the vertical (a map in another heading, slightly tilted), hundreds of metres away.
+MAP_FRAMES = (((412.0, -173.5, 12.3), (0.05, -0.03, 2.4)), ((-95.0, 260.0, -4.0), (-0.08, 0.02, 0.9)),
+              ((1500.0, 820.0, 35.0), (0.03, 0.1, -2.9)), ((-640.0, -310.0, 7.5), (0.12, -0.06, 1.6)))
+
+
+@functools.lru_cache(maxsize=None)
+def _map_frames():
+    """(p_map (3,), R_map (3, 3)) per map case; under a run seed each turned by 0.5–3 rad about a
+    drawn axis within about 0.15 rad of the vertical, its origin drawn within about 1 km."""
+    def draw(rng):
+        frames = []
+        for _ in MAP_FRAMES:
+            angle = rng.uniform(0.5, 3.0) * rng.choice((-1.0, 1.0))
+            frames.append((tuple(rng.normal(size=3) * np.array([500.0, 500.0, 20.0])),
+                           tuple(np.r_[rng.normal(size=2) * 0.1, angle])))
+        return tuple(frames)
+    frames = inputs.fixed_or_drawn(MAP_FRAMES, draw, "eskf.residual.map")
+    return tuple((np.array(p, dtype=float), so3.exp(np.array(v, dtype=float))) for p, v in frames)
+
+
+def _call_with_map(pose_residual, *args):
+    """The learner's residual with the map frame's pose: a signature without it is named."""
+    try:
+        return call(pose_residual, *args)
+    except CheckFailed as exc:
+        if "positional argument" in str(exc) and "TypeError" in str(exc):
+            raise CheckFailed("pose_residual takes the map frame's pose too: pose_residual(p_check, R_check, "
+                              "p_meas, R_meas, p_map=np.zeros(3), R_map=np.eye(3)), where the defaults are "
+                              "the navigation frame itself (the run's lidar poses). Hint: keep the cell's "
+                              "first line as it is") from None
+        raise
+
+
+def _map_mistakes(x, p_meas, R_meas, p_map, R_map):
+    """Known wrong ways to bring a map-frame pose into the residual: (position part, attitude
+    part, hint) per mistake; None where that part is not what the mistake changes."""
+    F_ = hints.formula
+    p_c, R_c = x.position, x.rotation
+    p_nav, R_nav = p_map + R_map @ p_meas, R_map @ R_meas
+    position = [
+        (p_c - p_meas, "the measured position is in the map frame and the prediction in the navigation frame: "
+                       "bring the measurement into the navigation frame first, with the map frame's pose "
+                       "(origin p_map, axes R_map)" + F_(": p_meas in the navigation frame is p_map + R_map p_meas")),
+        (p_c - (p_map + R_map.T @ p_meas), "transpose: R_map turns map-frame vectors into the navigation "
+                                           "frame, as R = R_nb turns body vectors (lecture 08 §1)"
+                                           + F_(": p_map + R_map p_meas, not p_map + R_mapᵀ p_meas")),
+        (p_c - R_map @ p_meas, "the map frame's origin is missing: a map-frame position is rotated into the "
+                               "navigation axes and then shifted by where the map's origin lies, p_map"),
+        (p_c - (R_map @ p_meas - p_map), "sign of the offset: the map's origin p_map is where the map-frame "
+                                         "position 0 lies in the navigation frame, so it is added"),
+        (p_c - R_map @ (p_meas + p_map), "order: p_map is a navigation-frame vector; rotate the map-frame "
+                                         "position first, then add the origin"),
+        (R_map.T @ (p_c - p_map) - p_meas, "this position residual is in the map frame: it is R_mapᵀ δp to "
+                                           "first order, so its block of G would be R_mapᵀ, not the +I of "
+                                           "POSE_G; compare the two positions in the navigation frame"),
+        (p_meas - R_map.T @ (p_c - p_map), "this position residual is in the map frame, and measurement minus "
+                                           "prediction: POSE_G's +I block needs prediction minus measurement in "
+                                           "the navigation frame"),
+    ]
+    attitude = [
+        (so3.log(R_meas.T @ R_c), "the measured attitude is the body's attitude in the map frame, the "
+                                  "prediction's in the navigation frame: bring the measurement into the "
+                                  "navigation frame first" + F_(": R_map R_meas (navigation ← map ← body)")),
+        (so3.log((R_meas @ R_map).T @ R_c), "order of the rotations: the measured attitude maps body to map, "
+                                            "R_map maps map to navigation, so R_map stands on the left"
+                                            + F_(": R_map R_meas, not R_meas R_map")),
+        (so3.log((R_map.T @ R_meas).T @ R_c), "transpose: R_map turns the map frame into the navigation frame"
+                                              + F_(": R_map R_meas, not R_mapᵀ R_meas")),
+    ]
+    return p_nav, R_nav, position, attitude
+
+
 @check
 def check_eskf_pose_residual(pose_residual):
-    """``pose_residual(p_check, R_check, p_meas, R_meas)`` returns y (6,).
+    """``pose_residual(p_check, R_check, p_meas, R_meas, p_map=0, R_map=I)`` returns y (6,).
 
-    The attitude part is accepted within |δθ|² of Log(R_measᵀ Ř): the lecture's first-order
-    δθ = (R_measᵀ Ř − I)^∨ passes; sign, frame and order mistakes err by O(|δθ|).
+    First with the measurement in the navigation frame (four arguments, as the run calls it),
+    then the same measurements expressed in a map frame (:data:`MAP_FRAMES`), whose pose the
+    call passes. The attitude part is accepted within |δθ|² of Log((R_map R_meas)ᵀ Ř): the
+    lecture's first-order δθ = (R_navᵀ Ř − I)^∨ passes; sign, frame and order mistakes err by
+    O(|δθ|), map-frame mistakes by O(1).
     """
     F_ = hints.formula
-    for x, p_m, R_m in _residual_cases():
-        value = call(pose_residual, x.position, x.rotation, p_m, R_m)
+    cases = [(x, p_m, R_m, None) for x, p_m, R_m in _residual_cases()]
+    cases += [(x, R_map.T @ (p_m - p_map), R_map.T @ R_m, (p_map, R_map))
+              for (x, p_m, R_m), (p_map, R_map) in zip(_residual_cases(), _map_frames())]
+    for x, p_meas, R_meas, frame in cases:
+        if frame is None:
+            value = call(pose_residual, x.position, x.rotation, p_meas, R_meas)
+            p_m, R_m, map_position, map_attitude, where = p_meas, R_meas, [], [], ""
+        else:
+            value = _call_with_map(pose_residual, x.position, x.rotation, p_meas, R_meas, *frame)
+            p_m, R_m, map_position, map_attitude = _map_mistakes(x, p_meas, R_meas, *frame)
+            where = " (a pose measured in a map frame)"
         _expect_double(value, "y")
         got = expect_shape(value, (6,), "y")
         ref = eskf.pose_residual(x.position, x.rotation, p_m, R_m)
         dth = ref[3:]
         body = so3.log(x.rotation @ R_m.T)
         tol = _attitude_tolerance(dth)
+        if not got.any():
+            raise CheckFailed(f"y is zero{where}: nothing was compared (the placeholder). Hint: the residual "
+                              "compares the predicted pose with the measured one, position first, then attitude as "
+                              "a rotation vector, such that y ≈ G δx + n with POSE_G's +I blocks under error = "
+                              "nominal − true (lecture 08 §4, Update)")
         if _close(got[:3], -ref[:3], 1e-12) and _close(got[3:], -dth, tol):
-            raise CheckFailed("y is the negative of the residual (both parts). Hint: sign: this is measurement "
-                              "minus prediction, the habit of the earlier chapters. Here error = nominal − true, "
-                              "and the residual must satisfy y ≈ G δx + n with G = POSE_G (blocks +I), so it is "
-                              "prediction minus measurement (lecture 08 §4, Update)"
-                              + F_(": y = [p̌ − p_meas; Log(R_measᵀ Ř)]"))
-        expect_close(got[:3], ref[:3], "the position residual y[0:3]", atol=1e-12, mistakes=[
+            raise CheckFailed(f"y is the negative of the residual (both parts){where}. Hint: sign: this is "
+                              "measurement minus prediction, the habit of the earlier chapters. Here error = nominal "
+                              "− true, and the residual must satisfy y ≈ G δx + n with G = POSE_G (blocks +I), so it "
+                              "is prediction minus measurement (lecture 08 §4, Update)"
+                              + F_(": y = [p̌ − p_meas; Log(R_measᵀ Ř)], the measurement in the navigation frame"))
+        expect_close(got[:3], ref[:3], f"the position residual y[0:3]{where}", atol=1e-12, mistakes=[
+            *map_position,
             (-ref[:3], "sign of the position residual: error = nominal − true, so the residual is prediction "
                        "minus measurement (lecture 08 §4)" + F_(": y = p̌ − p_meas")),
             (ref[3:], "order: y = [δp; δθ], the position residual first (lecture 08 §4)"),
-        ], hint="the position residual compares prediction with measurement in the error's convention "
-                "(lecture 08 §4, Update): " + F_("y[0:3] = p̌ − p_meas"))
-        expect_close(got[3:], dth, "the attitude residual y[3:6]", rtol=0.0, atol=tol, mistakes=[
+        ], hint="the position residual compares prediction with measurement in the error's convention, both in "
+                "the navigation frame (lecture 08 §4, Update): " + F_("y[0:3] = p̌ − p_meas"))
+        expect_close(got[3:], dth, f"the attitude residual y[3:6]{where}", rtol=0.0, atol=tol, mistakes=[
+            *map_attitude,
             (-dth, "sign of the attitude residual: Ř ≈ R_meas Exp(δθ), so the residual rotation is R_meas "
                    "undone from Ř, not the other way round (lecture 08 §4)"
                    + F_(": δθ = Log(R_measᵀ Ř), not Log(Řᵀ R_meas)")),
@@ -593,7 +701,7 @@ def check_eskf_pose_residual(pose_residual):
                                                  + F_(": δθ = Log(R_measᵀ Ř), not Log(Ř) − Log(R_meas)")),
             (ref[:3], "order: y = [δp; δθ], the attitude residual second (lecture 08 §4)"),
         ], hint="the attitude residual is the rotation vector between the measured and the predicted attitude, "
-                "in the body frame (lecture 08 §4, Update): "
+                "both in the navigation frame, in the body frame (lecture 08 §4, Update): "
                 + F_("y[3:6] = Log(R_measᵀ Ř) (or, to first order, (R_measᵀ Ř − I)^∨)"))
 
 
@@ -826,13 +934,38 @@ def _reset_case():
     return P, tuple(steps)
 
 
+def _call_reset(reset_covariance, P, dx, frame):
+    """The learner's reset for ``frame``: "body" called as the run calls it (two arguments),
+    "navigation" with the frame as the third; a signature without it is named."""
+    if frame == "body":
+        return call(reset_covariance, P, dx)
+    try:
+        return call(reset_covariance, P, dx, frame)
+    except CheckFailed as exc:
+        if "positional argument" in str(exc) and "TypeError" in str(exc):
+            raise CheckFailed("reset_covariance takes the frame of the attitude error too: reset_covariance(P, dx, "
+                              "frame=\"body\"), also called with frame=\"navigation\". Hint: keep the cell's first "
+                              "line as it is") from None
+        raise
+
+
+#: Per frame of the attitude error: the exact reset block (a function of δθ̂), the sign of the
+#: first-order ½[δθ̂]× and what the frame's error and injection are.
+_RESET_FRAMES = {"body": (so3.left_jacobian, 1.0, "Ř = R Exp(δθ), R̂ = Ř Exp(−δθ̂)"),
+                 "navigation": (so3.right_jacobian, -1.0, "Ř = Exp(δθ) R, R̂ = Exp(−δθ̂) Ř")}
+
+
 @check
 def check_eskf_reset(reset_covariance):
-    """``reset_covariance(P, dx)`` returns G P Gᵀ with the reset Jacobian of this convention.
+    """``reset_covariance(P, dx, frame="body")`` returns G P Gᵀ with the reset Jacobian of the
+    attitude error in ``frame``: "body" (this filter, Ř = R Exp(δθ)) or "navigation" (the
+    global error of lecture 08 §1, Ř = Exp(δθ) R, injected as R̂ = Exp(−δθ̂) Ř).
 
-    Accepted: G = J_l(δθ̂) (exact), G = I + ½[δθ̂]× (first order), or anything within
-    |δθ̂|² max|P[6:9]| of the exact result (|δθ̂| ≤ 0.09 here, so a sign mistake, off by
-    about |δθ̂| max|P[6:9]|, stays at least 10 times outside).
+    Accepted per frame: the exact block (J_l(δθ̂) in the body frame, J_r(δθ̂) = J_l(−δθ̂) in the
+    navigation frame), the first-order I ± ½[δθ̂]×, or anything within |δθ̂|² max|P[6:9]| of the
+    exact result (|δθ̂| ≤ 0.09 here, so a sign mistake, the other frame's block, off by about
+    |δθ̂| max|P[6:9]|, stays outside: by 5.5 to 13 tolerances, measured over the fixed cases and
+    six run seeds). The body frame is judged first, on every δx̂, then the navigation frame.
     """
     P, steps = _reset_case()
 
@@ -842,42 +975,90 @@ def check_eskf_reset(reset_covariance):
         return symmetrise(G @ P @ G.T), G
 
     F_ = hints.formula
-    for dx in steps:
-        th = dx[6:9]
-        value = call(reset_covariance, P, dx)
-        _expect_double(value, "P after reset")
-        got = expect_shape(value, (15, 15), "P after reset")
-        exact = eskf.reset_covariance(P, dx, exact=True)
-        first, G1 = sandwich(np.eye(3) + 0.5 * so3.hat(th))
+    results = {frame: [] for frame in _RESET_FRAMES}
+    for frame in _RESET_FRAMES:
+        for dx in steps:
+            value = _call_reset(reset_covariance, P, dx, frame)
+            _expect_double(value, "P after reset")
+            results[frame].append(expect_shape(value, (15, 15), "P after reset"))
+
+    def tolerance(th):
         # only the attitude rows and columns change: scale the tolerance by them
-        tol = float(th @ th) * np.abs(P[6:9]).max()
-        if _close(got, exact, 1e-15, 1e-9) or _close(got, first, 1e-15, 1e-9) or _close(got, exact, tol):
-            expect_symmetric(got, "P after reset")
-            continue
-        sign, _ = sandwich(np.eye(3) - 0.5 * so3.hat(th))
-        block = F_(": G's attitude block is J_l(δθ̂) ≈ I + ½[δθ̂]×")
-        why = known_mistake([got], [None], [
-            (sign, "sign of the reset Jacobian: I − ½[δθ̂]× is the reset of the opposite convention "
-                   "(true = nominal ⊕ error); this course's error = nominal − true flips it (lecture 08 §4, "
-                   "Reset; the same wrong result comes from Gᵀ P G for G P Gᵀ, or from the right Jacobian J_r)"
-                   + F_(": δθ⁺ ≈ δθ − δθ̂ + ½[δθ̂]× δθ, so the attitude block is J_l(δθ̂) ≈ I + ½[δθ̂]×")),
-            (P, "the covariance is (to first order) unchanged; this exercise asks for the reset P ← G P Gᵀ "
-                "(with Gᵀ on the right: the symmetric part of G P G is P + O(|δθ̂|²); lecture 08 §4, Reset)"),
-            (symmetrise(G1 @ P), "P ← G P Gᵀ: the Gᵀ on the right is missing (lecture 08 §4, Reset)"),
-            (G1 @ P @ G1, "transpose: P ← G P Gᵀ, not G P G (lecture 08 §4, Reset)"),
-            (sandwich(np.eye(3) + so3.hat(th))[0], "the factor ½ is missing from G's attitude block "
-                                                   "(lecture 08 §4, Reset)" + block),
-            (sandwich(np.eye(3) + 0.5 * so3.hat(th), slice(3, 6))[0],
-             "wrong block: the reset changes the attitude block G[6:9, 6:9] (rows and columns of δθ; "
-             "lecture 08 §4, Reset)"),
-            (sandwich(np.eye(3) + 0.5 * so3.hat(dx[3:6]))[0], "wrong part of dx: δθ̂ is dx[6:9] (lecture 08 §4)"),
-        ], close=lambda mine, wrong, _: _close(mine, wrong, max(tol, 1e-15), 1e-9), evaluate=lambda wrong, _: wrong)
-        if why:
-            raise CheckFailed(f"P after reset is wrong. Hint: {why}")
-        err = np.abs(np.asarray(got) - exact).max()
-        raise CheckFailed(f"P after reset differs from G P Gᵀ (max abs error {err:.3g}). Hint: the reset moves "
-                          "the covariance to the corrected state through G, the identity except its attitude "
-                          "block (lecture 08 §4, Reset)" + F_(": P ← G P Gᵀ, G[6:9, 6:9] = J_l(δθ̂) ≈ I + ½[δθ̂]×"))
+        return float(th @ th) * np.abs(P[6:9]).max()
+
+    def near(got, wanted, th):
+        return _close(got, wanted, max(tolerance(th), 1e-15), 1e-9)
+
+    def right(got, dx, frame):
+        exact_block, sign, _ = _RESET_FRAMES[frame]
+        th = dx[6:9]
+        exact, _ = sandwich(exact_block(th))
+        first, _ = sandwich(np.eye(3) + sign * 0.5 * so3.hat(th))
+        return _close(got, exact, 1e-15, 1e-9) or _close(got, first, 1e-15, 1e-9) or _close(got, exact, tolerance(th))
+
+    def first_order(sign, dx):
+        return sandwich(np.eye(3) + sign * 0.5 * so3.hat(dx[6:9]))[0]
+
+    # the two frames' blocks exchanged: named before either frame is judged alone
+    if not all(right(g, dx, f) for f in _RESET_FRAMES for g, dx in zip(results[f], steps)) and all(
+            near(g, first_order(-_RESET_FRAMES[f][1], dx), dx[6:9]) for f in _RESET_FRAMES
+            for g, dx in zip(results[f], steps)):
+        raise CheckFailed("P after reset is wrong in both frames. Hint: the two frames' attitude blocks are "
+                          "exchanged (Gᵀ P G for G P Gᵀ exchanges them too): derive each from its own error and injection, body frame Ř = R Exp(δθ) with "
+                          "R̂ = Ř Exp(−δθ̂), navigation frame Ř = Exp(δθ) R with R̂ = Exp(−δθ̂) Ř (lecture 08 §4, "
+                          "Reset, does the body frame)"
+                          + F_(": body I + ½[δθ̂]× (J_l(δθ̂)), navigation I − ½[δθ̂]× (J_r(δθ̂))"))
+    body_block = F_(": δθ⁺ = Log(Exp(δθ̂ + e) Exp(−δθ̂)) ≈ (I + ½[δθ̂]×) e, so the attitude block is "
+                    "J_l(δθ̂) ≈ I + ½[δθ̂]×")
+    nav_block = F_(": Exp(δθ⁺) = R̂ Rᵀ = Exp(−δθ̂) Exp(δθ̂ + e) ≈ Exp((I − ½[δθ̂]×) e), so the attitude block is "
+                   "J_r(δθ̂) ≈ I − ½[δθ̂]×")
+    for frame in _RESET_FRAMES:
+        _, sign, definition = _RESET_FRAMES[frame]
+        block = body_block if frame == "body" else nav_block
+        label = f" (frame=\"{frame}\": {definition})"
+        for got, dx in zip(results[frame], steps):
+            th = dx[6:9]
+            if right(got, dx, frame):
+                expect_symmetric(got, "P after reset")
+                continue
+            G1 = sandwich(np.eye(3) + sign * 0.5 * so3.hat(th))[1]
+            if frame == "body":
+                flipped = ("sign of the reset Jacobian: I − ½[δθ̂]× is the reset of an error on the other side "
+                           "(the navigation frame's, Ř = Exp(δθ) R) or of the opposite convention (true = nominal "
+                           "⊕ error); this filter's body-frame error = nominal − true gives the other sign (lecture "
+                           "08 §4, Reset; the same wrong result comes from Gᵀ P G for G P Gᵀ, or from the right "
+                           "Jacobian J_r)" + block)
+            else:
+                flipped = ("the navigation frame's reset is not the body frame's: with the error on the left, "
+                           "Ř = Exp(δθ) R, and the injection R̂ = Exp(−δθ̂) Ř, the correction stands on the other side "
+                           "of the error it removes. Follow lecture 08 §4's Reset derivation with the error on the "
+                           "left (the self-check below the cell measures the block; the same wrong result comes from "
+                           "the left Jacobian J_l, or from Gᵀ P G)" + block)
+            why = known_mistake([got], [None], [
+                (first_order(-sign, dx), flipped),
+                (P, "the covariance is (to first order) unchanged; this exercise asks for the reset P ← G P Gᵀ "
+                    "(with Gᵀ on the right: the symmetric part of G P G is P + O(|δθ̂|²); lecture 08 §4, Reset)"),
+                (symmetrise(G1 @ P), "P ← G P Gᵀ: the Gᵀ on the right is missing (lecture 08 §4, Reset)"),
+                (G1 @ P @ G1, "transpose: P ← G P Gᵀ, not G P G (lecture 08 §4, Reset)"),
+                (sandwich(np.eye(3) + sign * so3.hat(th))[0], "the factor ½ is missing from G's attitude block "
+                                                              "(lecture 08 §4, Reset)" + block),
+                (sandwich(np.eye(3) - sign * so3.hat(th))[0], "the factor ½ is missing from G's attitude block, "
+                                                              "and its sign is that of the other frame "
+                                                              "(lecture 08 §4, Reset)" + block),
+                (sandwich(np.eye(3) + sign * 0.5 * so3.hat(th), slice(3, 6))[0],
+                 "wrong block: the reset changes the attitude block G[6:9, 6:9] (rows and columns of δθ; "
+                 "lecture 08 §4, Reset)"),
+                (sandwich(np.eye(3) + sign * 0.5 * so3.hat(dx[3:6]))[0],
+                 "wrong part of dx: δθ̂ is dx[6:9] (lecture 08 §4)"),
+            ], close=lambda mine, wrong, _: near(mine, wrong, th), evaluate=lambda wrong, _: wrong)
+            if why:
+                raise CheckFailed(f"P after reset is wrong{label}. Hint: {why}")
+            exact, _ = sandwich(_RESET_FRAMES[frame][0](th))
+            err = np.abs(np.asarray(got) - exact).max()
+            raise CheckFailed(f"P after reset differs from G P Gᵀ{label} (max abs error {err:.3g}). Hint: the "
+                              "reset moves the covariance to the corrected state through G, the Jacobian of the "
+                              "error after the injection with respect to the error before it: the identity except "
+                              "its attitude block (lecture 08 §4, Reset)" + block)
 
 
 # ---------------------------------------------------------------------------------------

@@ -1,6 +1,13 @@
 """Checks for chapter 07: the three midpoint steps of IMU mechanisation, a whole run, and the
 optional challenge's levelling (the attitude a resting accelerometer gives).
 
+The attitude step is written twice: for C = R_bn = R_nbᵀ (``attitude_step_bn``, which the
+lecture does not write out: the learner derives it), and for R_nb (``attitude_step``, which the
+exercise builds from the first and the loop uses). ``attitude_step_bn`` is graded on the same
+cases as the R_nb step, handed Rᵀ, its result transposed back: its mistakes (the lecture's step
+applied to C, the rotation on the right side with the wrong sign, or the wrong side with the
+right sign) are R_nb mistakes seen through the transpose, with hints of their own.
+
 Each step is compared on several cases with the closed form of the midpoint rule: synthetic
 motion (a constant rate, a resting IMU, constant acceleration), synthetic cases whose rates,
 readings, biases and attitudes all differ (so that a dropped bias, a start-point rate, a
@@ -51,7 +58,8 @@ from kalman_course.core import so3
 from kalman_course.core.angles import wrap_angle
 from kalman_course.checks import cases as inputs  # `cases` names the lists of cases below
 from kalman_course.checks import hints
-from kalman_course.checks.harness import CheckFailed, as_array, call, check, expect_shape, known_mistake
+from kalman_course.checks.harness import (CheckFailed, as_array, call, check, expect_shape, known_mistake,
+                                          referenced_names)
 from kalman_course.data import imu_trajectory, load_kitti
 from kalman_course.core.imu import NavState, dead_reckon
 
@@ -360,19 +368,9 @@ _F = hints.formula
 _ZERO_RATE = ("at ω̄ T = 0 Rodrigues' formula divides 0 by 0: below a small angle use its series, or "
               "so3.Exp, which does (lecture 07 §1)" + _F(": Exp(φ) ≈ I + [φ]× + ½[φ]×²"))
 _STEP_ROTATION = _F(f": R_next = R Exp(ω̄ T) with ω̄ = {_MIDPOINT_RATE}")
-_ATTITUDE_MISTAKES = [
-    (lambda c: so3.exp(_phi(c)) @ c["R"],
-     "ω is measured in the body frame, so its rotation multiplies on the right (lecture 07 §3: Ṙ = R[ω]×)"
-     + _F(": R_next = R Exp(ω̄ T), not Exp(ω̄ T) R") + " (the left would rotate about navigation-frame axes)"),
-    (lambda c: c["R"].T @ so3.exp(_phi(c)),
-     "do not transpose R: R is R_nb (body → navigation), and the step turns it as it is (lecture 07 §3)"
-     + _F(": R_next = R Exp(ω̄ T)")),
-    (lambda c: (c["R"] @ so3.exp(_phi(c))).T,
-     "R_next is transposed: return R_nb, which maps body to navigation coordinates (lecture 07 §3)"
-     + _F(": R_next = R Exp(ω̄ T), not its transpose")),
-    (lambda c: c["R"] @ so3.exp(_phi(c)).T,
-     "sign: the body turns forwards by the measured rate; the transpose of the step's rotation turns it back "
-     "(lecture 07 §3)" + _F(": R_next = R Exp(+ω̄ T); Exp(−ω̄ T) = Exp(ω̄ T)ᵀ")),
+#: Mistakes in the rate (bias, midpoint, step, units): a step R Exp(φ′) with a wrong φ′, seen
+#: the same way through C's step (Exp(−φ′) C, transposed).
+_RATE_MISTAKES = [
     (lambda c: c["R"] @ so3.exp(_phi(c, 0.5 * (c["w0"] + c["w1"]))),
      "subtract the gyro bias: the bias was left out of the rate (lecture 07 §4)" + _F(f": ω̄ = {_MIDPOINT_RATE}")),
     (lambda c: c["R"] @ so3.exp(_phi(c, 0.5 * (c["w0"] + c["w1"]) + c["b_w"])),
@@ -398,19 +396,35 @@ _ATTITUDE_MISTAKES = [
      "the gyro reads radians per second already: do not convert from degrees (lecture 07 §4)"),
     (lambda c: c["R"] @ so3.exp(np.rad2deg(_phi(c))),
      "the gyro reads radians per second already: do not convert to degrees (Exp takes radians; lecture 07 §1)"),
-    (lambda c: c["R"] @ so3.exp(0.5 * (c["w0"] - c["b_w"]) * c["dt"]) @ so3.exp(0.5 * (c["w1"] - c["b_w"]) * c["dt"]),
-     "the midpoint rule turns once, by the mean rate, not by two half-steps (rotations do not commute; "
-     "lecture 07 §4)" + _F(f": R Exp(ω̄ T) with ω̄ = {_MIDPOINT_RATE}, not Exp(ω₀T/2) Exp(ω₁T/2)")),
     (lambda c: c["R"] @ so3.exp((np.mean([c["w0"], c["w1"]]) - c["b_w"]) * c["dt"]),
      "the mean is over the two rates (axis 0 of [ω₀, ω₁]), not over all six numbers: "
      "np.mean([w0, w1], axis=0)"),
+]
+
+_ATTITUDE_MISTAKES = [
+    (lambda c: so3.exp(_phi(c)) @ c["R"],
+     "ω is measured in the body frame, so its rotation multiplies on the right (lecture 07 §3: Ṙ = R[ω]×)"
+     + _F(": R_next = R Exp(ω̄ T), not Exp(ω̄ T) R") + " (the left would rotate about navigation-frame axes)"),
+    (lambda c: c["R"].T @ so3.exp(_phi(c)),
+     "do not transpose R: R is R_nb (body → navigation), and the step turns it as it is (lecture 07 §3)"
+     + _F(": R_next = R Exp(ω̄ T)")),
+    (lambda c: (c["R"] @ so3.exp(_phi(c))).T,
+     "R_next is transposed: return R_nb, which maps body to navigation coordinates (lecture 07 §3)"
+     + _F(": R_next = R Exp(ω̄ T), not its transpose")),
+    (lambda c: c["R"] @ so3.exp(_phi(c)).T,
+     "sign: the body turns forwards by the measured rate; the transpose of the step's rotation turns it back "
+     "(lecture 07 §3)" + _F(": R_next = R Exp(+ω̄ T); Exp(−ω̄ T) = Exp(ω̄ T)ᵀ")),
+] + _RATE_MISTAKES[:-1] + [
+    (lambda c: c["R"] @ so3.exp(0.5 * (c["w0"] - c["b_w"]) * c["dt"]) @ so3.exp(0.5 * (c["w1"] - c["b_w"]) * c["dt"]),
+     "the midpoint rule turns once, by the mean rate, not by two half-steps (rotations do not commute; "
+     "lecture 07 §4)" + _F(f": R Exp(ω̄ T) with ω̄ = {_MIDPOINT_RATE}, not Exp(ω₀T/2) Exp(ω₁T/2)")),
+] + _RATE_MISTAKES[-1:] + [
     (lambda c: c["R"],
      "the attitude did not change: the step must turn R by the step's rotation (lecture 07 §3)" + _STEP_ROTATION),
     (lambda c: so3.exp(_phi(c)),
      "compose with the previous attitude: the step's rotation alone is not the new attitude (lecture 07 §3)"
      + _F(": R_next = R Exp(ω̄ T), not Exp(ω̄ T) alone")),
 ]
-
 
 #: Angles |ω̄ T| (rad) of the attitude step's sweep: one per decade where nothing switches, two
 #: per decade from 1e-11 to 1e-2, where a learner's small-angle switch or series cut-off lies.
@@ -466,8 +480,11 @@ def _attitude_sweep():
                  for n, R, w0, w1, b, dt in _sweep_cases())
 
 
-def _judge_sweep(values, cases) -> None:
-    """Fail on the first sweep case that differs, naming the regime (the main cases passed)."""
+def _judge_sweep(values, cases, matrix="R") -> None:
+    """Fail on the first sweep case that differs, naming the regime (the main cases passed).
+
+    ``values`` are R_nb attitudes (those of C's step transposed back); ``matrix`` names the
+    learner's matrix in the message, ``"R"`` or ``"C"``."""
     failing = [k for k, (v, c) in enumerate(zip(values, cases)) if not _same(v, c["ref"], ATTITUDE_ATOL)]
     if not failing:
         return
@@ -477,18 +494,18 @@ def _judge_sweep(values, cases) -> None:
         k = max(small, key=lambda j: angles[j])
         unchanged = all(_same(values[j], cases[j]["R"], 1e-15) for j in small)
         err = float(np.max(np.abs(values[k] - cases[k]["ref"])))
-        what = ("your step returns R unchanged there, which drops the whole rotation" if unchanged else
+        what = (f"your step returns {matrix} unchanged there, which drops the whole rotation" if unchanged else
                 "your small-angle branch (a truncated series) drops a term that is larger than the tolerance "
                 "there")
         raise CheckFailed(
-            f"R_next is wrong for small rotations, up to |ω̄ T| = {angles[k]:.2g} rad (case '{cases[k]['name']}', "
+            f"{matrix}_next is wrong for small rotations, up to |ω̄ T| = {angles[k]:.2g} rad (case '{cases[k]['name']}', "
             f"max abs error {err:.3g}): {what}. Hint: small rotations: below a small angle, a series must keep "
             "every term that exceeds about 1e-10 (lecture 07 §1); switch over at a smaller angle, or keep more "
             "terms, or use so3.Exp" + _F(": Exp(φ) ≈ I + [φ]× + ½[φ]×² errs by |φ|³/6"))
     k = failing[0]
     err = float(np.max(np.abs(values[k] - cases[k]["ref"])))
     raise CheckFailed(
-        f"R_next is wrong for a large rotation, |ω̄ T| = {angles[k]:.3g} rad (case '{cases[k]['name']}', max abs "
+        f"{matrix}_next is wrong for a large rotation, |ω̄ T| = {angles[k]:.3g} rad (case '{cases[k]['name']}', max abs "
         f"error {err:.3g}). Hint: Exp is defined for every angle, π and beyond included: no wrapping of the "
         "angle or of the axis is needed, and a hand-made Log/Exp pair must stay exact near π (lecture 07 §1)"
         + _F(": Exp(φ) = I + (sin θ/θ)[φ]× + ((1 − cos θ)/θ²)[φ]×²"))
@@ -506,35 +523,59 @@ def _unchanged_when_small(value, c) -> bool:
                                                     and _same(value, c["R"], 1e-15))
 
 
-def _attitude_values(attitude_step, cases):
-    """The learner's R_next on each case, as (3, 3) rotations."""
+def _attitude_values(attitude_step, cases, matrix="R"):
+    """The learner's R_next on each case, as (3, 3) rotations.
+
+    With ``matrix="C"`` the learner's step turns C = R_bn: it is handed Rᵀ (a copy) and its
+    result is transposed back, so that every value, mistake and pattern is an R_nb attitude."""
     values = []
     for c in cases:
         zero = not np.any(_phi(c))
+        start = c["R"] if matrix == "R" else np.array(c["R"].T)
         # at ω̄ = 0 a learner's own Rodrigues may raise (so3.hat(φ / θ) refusing a NaN)
-        got = _call_step(attitude_step, c["R"], c["w0"], c["w1"], c["b_w"], c["dt"],
+        got = _call_step(attitude_step, start, c["w0"], c["w1"], c["b_w"], c["dt"],
                          hint=f"on the case '{c['name']}', {_ZERO_RATE}" if zero else "")
-        got = _result(got, (3, 3), f"R_next on the case '{c['name']}'", nan_hint=_ZERO_RATE if zero else "")
+        got = _result(got, (3, 3), f"{matrix}_next on the case '{c['name']}'", nan_hint=_ZERO_RATE if zero else "")
         if not so3.is_rotation(got, tol=1e-9):
             err = np.max(np.abs(got.T @ got - np.eye(3)))
             raise CheckFailed(
-                f"R_next on the case '{c['name']}' is not a rotation matrix (|RᵀR − I| = {err:.2g}). "
+                f"{matrix}_next on the case '{c['name']}' is not a rotation matrix (|{matrix}ᵀ{matrix} − I| = {err:.2g}). "
                 "Hint: compose with the exponential of the step's rotation vector, not with the first-order "
                 "I + [φ]× or another truncated series (lecture 07 §3); a quaternion must be normalised to unit "
                 "length before it becomes a matrix")
-        values.append(got)
+        values.append(got if matrix == "R" else got.T)
     return values
 
 
-@check
+_FROM_BN = _F(": R_next = attitude_step_bn(Rᵀ, …)ᵀ")
+
+#: Mistakes of an ``attitude_step`` built from the learner's ``attitude_step_bn`` (a right one):
+#: the conversions between R and C = Rᵀ forgotten on the way in, on the way out, or both.
+_WRAPPER_MISTAKES = [
+    (lambda c: so3.exp(-_phi(c)) @ c["R"],
+     "attitude_step_bn takes and returns C = R_bn = Rᵀ, while attitude_step takes and returns R = R_nb: hand "
+     "it the transpose of R, and transpose what it returns" + _FROM_BN),
+    (lambda c: so3.exp(-_phi(c)) @ c["R"].T,
+     "attitude_step_bn returns C_next = R_nextᵀ: transpose it back into R_nb before returning it" + _FROM_BN),
+    (lambda c: c["R"].T @ so3.exp(_phi(c)),
+     "attitude_step_bn takes C = Rᵀ: hand it the transpose of R, not R itself" + _FROM_BN),
+]
+
+
+@check(uses=("attitude_step_bn",))
 def check_attitude_step(attitude_step):
     """``attitude_step(R, w0, w1, b_w, dt)`` returns the attitude at the next sample.
 
     The main cases name the mistakes; then a sweep of the singular regimes
     (:func:`_sweep_cases`) finds a small-angle switch or series that errs beyond the tolerance.
+    An ``attitude_step`` that calls ``attitude_step_bn`` (the exercise builds it so) is also
+    judged for the conversions between R and C, and is told to fix ``attitude_step_bn`` first
+    when that fails its own check.
     """
     cases = _attitude_cases()
-    _grade(_attitude_values(attitude_step, cases), cases, "R_next", ATTITUDE_ATOL, _ATTITUDE_MISTAKES,
+    wrapper = "attitude_step_bn" in referenced_names(attitude_step)
+    _grade(_attitude_values(attitude_step, cases), cases, "R_next", ATTITUDE_ATOL,
+           (_WRAPPER_MISTAKES if wrapper else []) + _ATTITUDE_MISTAKES,
            hint="the step composes R with the exponential of the step's rotation, the bias-corrected mean "
                 "rate times T (lecture 07 §3–4)" + _STEP_ROTATION, patterns=[(
                _first_order, "R_next agrees with the exponential only to first order in φ = ω̄ T: a "
@@ -543,6 +584,82 @@ def check_attitude_step(attitude_step):
                (_unchanged_when_small, _SMALL_UNCHANGED)])
     sweep = _attitude_sweep()
     _judge_sweep(_attitude_values(attitude_step, sweep), sweep)
+
+
+# ----------------------------------------------------------------------------------------
+# The attitude step for C = R_bn (the learner derives it)
+# ----------------------------------------------------------------------------------------
+
+_BN_STEP = _F(f": C_next = Exp(φ)ᵀ C = Exp(−ω̄ T) C with ω̄ = {_MIDPOINT_RATE}")
+
+#: C = R_bn's mistakes, each as the R_nb attitude it amounts to (the learner's C_next
+#: transposed): the learner's expression is in the comment. φ = ω̄ T.
+_ATTITUDE_BN_MISTAKES = [
+    # C Exp(φ): lecture 07's step for R, applied to C
+    (lambda c: so3.exp(-_phi(c)) @ c["R"],
+     "this is lecture 07's step for R = R_nb, applied to C = R_bn. C is the transpose of R, so its step is the "
+     "transpose of the lecture's: transpose both sides of the lecture's step (§3), using what the transpose of "
+     "Exp(φ) is (§1)" + _BN_STEP),
+    # Exp(φ) C: the right side, the wrong sign
+    (lambda c: c["R"] @ so3.exp(-_phi(c)),
+     "the side is right (transposing a product reverses its order), but the step's rotation must be transposed "
+     "too: the transpose of a rotation turns back by the same angle (lecture 07 §1)"
+     + _F(": Exp(φ)ᵀ = Exp(−φ), so C_next = Exp(−φ) C")),
+    # C Exp(−φ): the right sign, the wrong side
+    (lambda c: so3.exp(_phi(c)) @ c["R"],
+     "the sign is right, but transposing a product also reverses the order of its factors: C maps navigation "
+     "coordinates to body coordinates, so the body frame, where the gyro measures, is on C's left "
+     "(lecture 07 §3)" + _F(": Ċ = Ṙᵀ = (R[ω]×)ᵀ = −[ω]× C, so C_next = Exp(−φ) C")),
+    # Cᵀ Exp(φ): the lecture's step of R = Cᵀ, returned as it is
+    (lambda c: so3.exp(-_phi(c)) @ c["R"].T,
+     "your step returns the new R_nb (the lecture's step of R = Cᵀ): attitude_step_bn takes and returns "
+     "C = R_bn, so transpose the result, or better, turn C itself" + _BN_STEP),
+    # Exp(−φ) Cᵀ: C transposed on the way in
+    (lambda c: c["R"].T @ so3.exp(_phi(c)),
+     "do not transpose C: it is R_bn already, and its step turns it as it is" + _BN_STEP),
+] + _RATE_MISTAKES[:-1] + [
+    # Exp(−φ₁/2) Exp(−φ₀/2) C: two half steps
+    (lambda c: c["R"] @ so3.exp(0.5 * (c["w0"] - c["b_w"]) * c["dt"]) @ so3.exp(0.5 * (c["w1"] - c["b_w"]) * c["dt"]),
+     "the midpoint rule turns once, by the mean rate, not by two half-steps (rotations do not commute; "
+     "lecture 07 §4)" + _BN_STEP),
+] + _RATE_MISTAKES[-1:] + [
+    (lambda c: c["R"],
+     "the attitude did not change: the step must turn C by the step's rotation (lecture 07 §3)" + _BN_STEP),
+    (lambda c: so3.exp(_phi(c)),
+     "compose with the previous attitude: the step's rotation alone is not the new attitude (lecture 07 §3)"
+     + _BN_STEP),
+    (lambda c: so3.exp(-_phi(c)),
+     "compose with the previous attitude: the step's rotation alone is not the new attitude (lecture 07 §3)"
+     + _BN_STEP),
+]
+
+_BN_SMALL_UNCHANGED = ("small rotations: your step returns C unchanged below some angle, which drops the whole "
+                       "rotation (an error of |φ|, above the tolerance 1e-10 from |φ| = 1e-10 on); below a small "
+                       "angle, a series must keep every term that exceeds about 1e-10 (lecture 07 §1), or use "
+                       "so3.Exp" + _F(": Exp(φ) ≈ I + [φ]× + ½[φ]×²"))
+
+
+@check
+def check_attitude_step_bn(attitude_step_bn):
+    """``attitude_step_bn(C, w0, w1, b_w, dt)`` returns C = R_bn at the next sample.
+
+    The cases and the sweep are the R_nb step's: the learner's step is handed C = Rᵀ and its
+    result is transposed back (:func:`_attitude_values`), so that the tolerance, the patterns
+    of a first-order step and of a small-angle cut-off, and the rate mistakes are those of
+    :func:`check_attitude_step`; the mistakes of the convention (:data:`_ATTITUDE_BN_MISTAKES`)
+    have hints of their own.
+    """
+    cases = _attitude_cases()
+    _grade(_attitude_values(attitude_step_bn, cases, matrix="C"), cases, "C_next", ATTITUDE_ATOL,
+           _ATTITUDE_BN_MISTAKES,
+           hint="C = R_bn is the transpose of lecture 07's R_nb: its step is the transpose of the lecture's step, "
+                "with the bias-corrected mean rate times T (lecture 07 §3–4)" + _BN_STEP, patterns=[(
+               _first_order, "C_next agrees with the exponential only to first order in φ = ω̄ T: a "
+               "first-order I − [φ]× (even re-orthonormalised) or a truncated series is not the "
+               "exponential (lecture 07 §3); use Rodrigues' formula or so3.Exp"),
+               (_unchanged_when_small, _BN_SMALL_UNCHANGED)])
+    sweep = _attitude_sweep()
+    _judge_sweep(_attitude_values(attitude_step_bn, sweep, matrix="C"), sweep, matrix="C")
 
 
 # ----------------------------------------------------------------------------------------

@@ -11,12 +11,17 @@ Cases (what is real, what is simulated)
   from 4 mrad to 40 m: both sides of 1), where a special case for short or long steps shows.
 - Augmented matrices: the plain ESKF's F and B Q Bᵀ (:mod:`kalman_course.filters.eskf`) at
   states of the real KITTI ground truth of ``turns`` (tilted, made-up non-zero biases), steps of
-  0.01, 0.104 and 1 s, made-up σ per component; and the first of them again with τ from 1e6 T
-  down to 1e-3 T (T ≪ τ to T ≫ τ).
+  0.01, 0.104 and 1 s; the observation error made up: six Gauss–Markov components with their own
+  time constants (:data:`AUG_TAU_FACTORS`, position errors longer than attitude errors) and
+  correlated drives (:data:`AUG_DRIVE_CORRELATION`), whose stationary covariance Σ
+  (:func:`stationary_covariance`) has correlations up to 0.61; and the first of them again with
+  the base τ from 1e6 T down to 1e-3 T (T ≪ τ to T ≫ τ).
 - Relative motion, residual and Jacobian: pairs of real KITTI ground-truth poses (``turns``)
   0.1, 1 and 3 s apart (up to 1.45 rad of turning), tilted by up to ~0.5 rad so that no
   rotation is about the vertical alone; the same pairs moved by one rigid transform (a relative
   pose must not change); measured increments are the true ones plus seeded noise (simulated);
+  the residual and the Jacobian also for a camera's increments, at KITTI's cam0 lever arm (real
+  calibration, 1.37 m from the IMU) and at a made-up one (:data:`MADE_UP_LEVER_ARM`);
   and a turn sweep: a tilted KITTI pose and made-up poses turned from it by 1e-8 and 1e-4 rad
   and by π − 1e-3 and π − 1e-6 rad, each about an axis and about its opposite (the Jacobian
   takes the two nearest a half turn).
@@ -32,7 +37,8 @@ Cases (what is real, what is simulated)
 Under a graded run's seed (:mod:`kalman_course.checks.cases`) every family is drawn anew from
 the same sources: the Gauss–Markov σ, T and τ (made up, over the same ranges, a step 2.5–6
 times τ among them); the augmented cases at three other IMU samples of ``turns`` (real truth
-state and IMU reading) with other made-up tilts, biases, σ, T and τ; other pairs of real
+state and IMU reading) with other made-up tilts, biases, σ, T, τ factors and drive
+correlations (Σ's correlations then 0.3–0.6); the made-up lever arm (0.5–2 m, any direction); other pairs of real
 ``turns`` truth poses (the same spread of gaps, other tilts, another rigid transform of 1 rad
 to nearly π, redrawn until some pair turns by 1 rad), hence other residual and Jacobian cases
 (the measured increments' noise, simulated, drawn again); the drift metric on another window
@@ -51,15 +57,17 @@ Tolerances (and why; "measured" numbers are over these cases)
 -------------------------------------------------------------
 - Gauss–Markov blocks, augmented F and Q, relative motion, the position part of the residual:
   :data:`RTOL` relative, :data:`ATOL` absolute: round-off only (exp, expm1, block_diag, solve
-  and the order of products agree to ~1e-15); every listed mistake is off by more than 1e-2
-  relative on some case (measured; the closest, 1.5 %, is one of F_aug and Q_aug's).
+  and the order of products agree to ~1e-15; Q_e by expm1 and Σ − F_e Σ F_eᵀ agree to ~5e-11
+  relative at T/τ = 1e-6); every listed mistake is off by more than 1e-2 relative on some case
+  (measured), except for F_aug and Q_aug's closest, one decay per row symmetrised afterwards,
+  off by 6.5e-4 to 1.2e-3 relative (measured on the fixed cases and two run seeds).
 - The attitude part of the residual: |y_θ|² + 1e-12 absolute (as chapter 08's pose residual), so
   the lecture's first-order (ΔR_mᵀ ΔŘ − I)^∨ passes (it differs from the Log by less than
   |y_θ|²/4); every listed mistake errs by O(|y_θ|) or O(|ΔŘ| |y_θ|) on the 1–3 s cases
   (|y_θ| ≈ 0.02–0.09 rad, turning up to 1.45 rad): 17 times the tolerance or more (measured).
 - Jacobian: :data:`JACOBIAN_ATOL` absolute against central differences of the residual
-  (h = 1e-6; they agree with the analytic blocks to 3e-9, measured); every listed mistake errs
-  by more than 1 in some block entry (measured).
+  (h = 1e-6; they agree with the analytic blocks to 5e-9, measured, with and without a lever
+  arm); every listed mistake errs by more than 0.9 in some block entry (measured).
 - Drift: :data:`DRIFT_RTOL` relative on every segment's errors: the angle by an arccos of the
   trace loses precision at small angles (at the smallest rotational error here, 1e-3 rad, it
   differs from the norm of the Log by up to 1.8e-9 relative, measured; a drawn case keeps no
@@ -85,6 +93,7 @@ from kalman_course.checks.harness import CheckFailed, as_array, call, check, kno
 from kalman_course.chapters import visual_odometry as vo
 from kalman_course.chapters.real_sensors import relative_jacobian_by_differences
 from kalman_course.core import so3
+from kalman_course.core.numdiff import numerical_jacobian
 from kalman_course.core.linalg import symmetrise
 from kalman_course.data import load_kitti
 from kalman_course.evaluation import metrics
@@ -133,18 +142,37 @@ GM_SWEEP_SIGMA = np.array([0.03, 2.5, 40.0, 0.004, 0.6, 1.8])
 GM_SWEEP_TAUS_DRAWN = (0.02, 500.0)
 SIGMA_SWEEP_DRAWN = (0.003, 50.0)
 
-#: Augmented-matrix cases: (IMU step or interval T s, τ s); one KITTI state each (IMU sample).
+#: Augmented-matrix cases: (IMU step or interval T s, base time constant τ s); one KITTI state each (IMU
+#: sample). Each component's τ is the base times its factor in AUG_TAU_FACTORS (position errors last
+#: longer than attitude errors), so no two components share one.
 AUG_STEPS = ((0.01, 0.5), (0.104, 1.0), (1.0, 3.0))
 AUG_SAMPLES = (700, 2500, 4400)
-#: Under a run seed, the ranges of T and of τ (s) of each augmented case: T always below τ
-#: and the ranges apart, so that swapping them changes F_e.
-AUG_DRAWN = (((0.005, 0.02), (0.3, 0.8)), ((0.05, 0.2), (0.6, 1.6)), ((0.5, 1.5), (2.0, 5.0)))
-#: The augmented cases' sweep: the first case's step (its F and B Q Bᵀ) again, with τ = T / ratio
+AUG_TAU_FACTORS = np.array([1.6, 1.0, 2.2, 0.45, 0.6, 0.35])
+#: The correlations of the white drives of the six components (x, y, z, roll, pitch, yaw of the map
+#: matcher's error): a lateral shift goes with a yaw error, a vertical one with roll and pitch. The
+#: stationary covariance Σ has correlations C_ij · 2√(τ_i τ_j)/(τ_i + τ_j), up to 0.61 here.
+AUG_DRIVE_CORRELATION = np.array([
+    [1.0, 0.3, 0.0, 0.0, 0.0, 0.2],
+    [0.3, 1.0, 0.0, 0.1, 0.0, 0.7],
+    [0.0, 0.0, 1.0, -0.4, 0.3, 0.0],
+    [0.0, 0.1, -0.4, 1.0, 0.25, 0.0],
+    [0.0, 0.0, 0.3, 0.25, 1.0, 0.0],
+    [0.2, 0.7, 0.0, 0.0, 0.0, 1.0]])
+#: Under a run seed, the ranges of T and of the base τ (s) of each augmented case: T always below
+#: every τ (the factors are drawn from AUG_TAU_FACTORS_DRAWN) and the ranges apart, so that swapping
+#: them changes F_e.
+AUG_DRAWN = (((0.005, 0.02), (0.8, 1.6)), ((0.05, 0.2), (1.0, 2.5)), ((0.5, 1.0), (3.0, 6.0)))
+AUG_TAU_FACTORS_DRAWN = (0.35, 2.5)
+#: The augmented cases' sweep: the first case's step (its F and B Q Bᵀ) again, with base τ = T / ratio
 #: for these ratios T/τ (from T ≪ τ to T ≫ τ, as the Gauss–Markov sweep); under a run seed each
 #: ratio is moved by a drawn factor of up to 3 either way.
 AUG_SWEEP_RATIOS = (1e-6, 1e-2, 10.0, 1e3)
 #: ESKF noise densities of the cases (accel, gyro, accel bias, gyro bias), as chapter 08's.
 DENSITY = np.array([0.03, 1e-3, 1.67e-4, 2.91e-6])
+
+#: A made-up camera lever arm (m, body frame) beside KITTI's cam0 (:func:`camera_lever_arms`): behind,
+#: left and above the IMU, no component near zero, the signs of x and y opposite to KITTI's.
+MADE_UP_LEVER_ARM = np.array([-0.45, 0.9, 1.6])
 
 #: Pose-pair cases: (truth frame of the clone, frames later) on ``turns``; 10 frames ≈ 1 s.
 POSE_PAIRS = ((100, 1), (100, 30), (260, 10), (380, 30), (530, 10))
@@ -472,40 +500,72 @@ def _judge_sweep(results, sweep) -> None:
 # 2. the augmented transition and process noise
 # --------------------------------------------------------------------------------------
 
+def stationary_covariance(sigma, tau, correlation) -> np.ndarray:
+    """Σ (6, 6) of six first-order Gauss–Markov components driven by correlated white noise.
+
+    Component i has stationary standard deviation ``sigma[i]`` and time constant ``tau[i]``;
+    the drives have the correlation matrix ``correlation`` (positive definite). Σ solves
+    A Σ + Σ A = Q_c with A = diag(1/τ), so Σ_ij = C_ij σ_i σ_j · 2√(τ_i τ_j)/(τ_i + τ_j): a
+    covariance for any τ, and one step of any length keeps it (F_e Σ F_eᵀ + Q_e = Σ).
+    """
+    sigma, tau = np.asarray(sigma, dtype=float), np.asarray(tau, dtype=float)
+    shrink = 2.0 * np.sqrt(np.outer(tau, tau)) / np.add.outer(tau, tau)
+    return symmetrise(np.outer(sigma, sigma) * np.asarray(correlation, dtype=float) * shrink)
+
+
+def _drawn_correlation(rng: np.random.Generator) -> np.ndarray:
+    """A drawn correlation matrix of six drives with correlations up to about ±0.7."""
+    L = rng.normal(size=(6, 6))
+    M = L @ L.T + 3.0 * np.eye(6)
+    d = np.sqrt(np.diag(M))
+    return M / np.outer(d, d)
+
+
+def _aug_case(F, BQBt, sigma, T, tau, correlation):
+    Sigma = stationary_covariance(sigma, tau, correlation)
+    tau = np.array(tau, dtype=float)
+    for arr in (F, BQBt, Sigma, tau):
+        arr.setflags(write=False)
+    return (F, BQBt, Sigma, T, tau)
+
+
 @functools.lru_cache(maxsize=None)
 def augmented_cases():
-    """(F (15, 15), B Q Bᵀ (15, 15), σ (6,), T, τ) at KITTI truth states (real) with made-up biases.
+    """(F (15, 15), B Q Bᵀ (15, 15), Σ (6, 6), T, τ (6,)) at KITTI truth states (real) with made-up biases.
 
-    Under a run seed: three other IMU samples of the excerpt (their truth state and real IMU
-    reading), T, τ (:data:`AUG_DRAWN`) and σ (:data:`SIGMA_DRAWN`) drawn, and other tilts and
-    biases.
+    Σ is the stationary covariance of correlated components (:func:`stationary_covariance`, the
+    drives' correlations :data:`AUG_DRIVE_CORRELATION`), τ one per component. Under a run seed: three
+    other IMU samples of the excerpt (their truth state and real IMU reading), T, the base τ
+    (:data:`AUG_DRAWN`), the τ factors, the correlations and σ (:data:`SIGMA_DRAWN`) drawn, and
+    other tilts and biases.
     """
     ex = load_kitti("turns")
     rng = inputs.rng("real_sensors.augmented", 10)
-    settings = zip(AUG_STEPS, AUG_SAMPLES, (_SIGMA_A, _SIGMA_B, _SIGMA_A[::-1].copy()))
+    settings = zip(AUG_STEPS, AUG_SAMPLES, (_SIGMA_A, _SIGMA_B, _SIGMA_A[::-1].copy()),
+                   [AUG_TAU_FACTORS] * 3, [AUG_DRIVE_CORRELATION] * 3)
     if inputs.drawing():
         samples = np.sort(rng.choice(np.arange(10, len(ex.imu.t) - 10), len(AUG_DRAWN), replace=False))
         steps = [tuple(float(inputs.log_uniform(rng, *r)) for r in ranges) for ranges in AUG_DRAWN]
-        settings = zip(steps, samples, [_drawn_sigma(rng) for _ in AUG_DRAWN])
+        settings = zip(steps, samples, [_drawn_sigma(rng) for _ in AUG_DRAWN],
+                       [inputs.log_uniform(rng, *AUG_TAU_FACTORS_DRAWN, 6) for _ in AUG_DRAWN],
+                       [_drawn_correlation(rng) for _ in AUG_DRAWN])
     cases = []
-    for (T, tau), k, sigma in settings:
+    for (T, tau), k, sigma, factors, correlation in settings:
         nav = ex.truth.state_at(float(ex.imu.t[k]))
         R = nav.rotation @ so3.exp(rng.normal(size=3) * 0.3)
         b_a, b_w = rng.normal(size=3) * 0.05, rng.normal(size=3) * 0.005
         F_t = eskf.error_dynamics(R, ex.imu.specific_force[k], ex.imu.angular_rate[k], b_a, b_w)
         F, B = eskf.discretise(F_t, eskf.noise_jacobian(R), T)
         BQBt = symmetrise(B @ eskf.process_noise(DENSITY, T) @ B.T)
-        for arr in (F, BQBt, sigma):
-            arr.setflags(write=False)
-        cases.append((F, BQBt, sigma, T, tau))
+        cases.append(_aug_case(F, BQBt, sigma, T, tau * np.asarray(factors), correlation))
     F, BQBt, _, T, _ = cases[0]
     for ratio in AUG_SWEEP_RATIOS:
+        factors, correlation, sigma = AUG_TAU_FACTORS, AUG_DRIVE_CORRELATION, GM_SWEEP_SIGMA
         if inputs.drawing():
             ratio *= float(inputs.log_uniform(rng, 1 / 3, 3))
-        sigma = GM_SWEEP_SIGMA if not inputs.drawing() else _drawn_sigma(rng)
-        sigma = np.array(sigma)
-        sigma.setflags(write=False)
-        cases.append((F, BQBt, sigma, T, T / ratio))
+            factors = inputs.log_uniform(rng, *AUG_TAU_FACTORS_DRAWN, 6)
+            correlation, sigma = _drawn_correlation(rng), _drawn_sigma(rng)
+        cases.append(_aug_case(F, BQBt, sigma, T, (T / ratio) * np.asarray(factors), correlation))
     return tuple(cases)
 
 
@@ -517,12 +577,23 @@ def _blockdiag(A, B) -> np.ndarray:
     return out
 
 
-def _aug_F(F, BQBt, sigma, T, tau):
-    return eskf_augmented.augmented_transition(F, T, tau)
+def _decays(T, tau) -> np.ndarray:
+    """φ_i = exp(−T/τ_i) (6,)."""
+    return np.exp(-T / np.asarray(tau, dtype=float))
 
 
-def _aug_Q(F, BQBt, sigma, T, tau):
-    return eskf_augmented.augmented_process_noise(BQBt, sigma, T, tau)
+def _stationary_noise(Sigma, T, tau) -> np.ndarray:
+    """Q_e = Σ − F_e Σ F_eᵀ, entry by entry Σ_ij (1 − φ_i φ_j), without the cancellation at T ≪ τ."""
+    rates = 1.0 / np.asarray(tau, dtype=float)
+    return -np.expm1(-T * np.add.outer(rates, rates)) * Sigma
+
+
+def _aug_F(F, BQBt, Sigma, T, tau):
+    return _blockdiag(F, np.diag(_decays(T, tau)))
+
+
+def _aug_Q(F, BQBt, Sigma, T, tau):
+    return _blockdiag(BQBt, _stationary_noise(Sigma, T, tau))
 
 
 def _coupled(F, rows: bool) -> np.ndarray:
@@ -535,58 +606,141 @@ def _coupled(F, rows: bool) -> np.ndarray:
     return out
 
 
+def _one_tau(pick):
+    """The right blocks with every component given the one time constant ``pick(tau)``."""
+    def F(F, Q, S, T, tau):
+        return _blockdiag(F, _phi(T, pick(tau)) * np.eye(6))
+
+    def Q(F, Q, S, T, tau):
+        return _blockdiag(Q, (1.0 - _phi(T, pick(tau)) ** 2) * S)
+    return F, Q
+
+
+def _rows_only(F, Q, S, T, tau):
+    return _blockdiag(Q, (1.0 - _decays(T, tau) ** 2)[:, None] * S)
+
+
+def _columns_only(F, Q, S, T, tau):
+    return _blockdiag(Q, S * (1.0 - _decays(T, tau) ** 2)[None, :])
+
+
+def _rows_symmetrised(F, Q, S, T, tau):
+    return symmetrise(_rows_only(F, Q, S, T, tau))
+
+
+_ROWS_HINT = ("each entry of Σ is scaled by the decay of its row only (Σ − F_e F_e Σ, or (1 − φ²) times Σ row by "
+              "row): the part of the covariance that the step carries over is F_e Σ F_eᵀ, with one component's "
+              "decay on each side" + hints.formula(", so entry (i, j) keeps φ_i φ_j of itself"))
+
 # each mistake: (F_aug formula, Q_aug formula, why); None: that matrix is not part of the mistake
 _AUG_MISTAKES = [
-    (lambda F, Q, s, T, tau: np.eye(21), lambda F, Q, s, T, tau: np.zeros((21, 21)),
+    (lambda F, Q, S, T, tau: np.eye(21), lambda F, Q, S, T, tau: np.zeros((21, 21)),
      "F_aug is the identity and Q_aug zero: the step does nothing (the placeholder). Over one step the "
      "navigation errors move as in the plain ESKF (its F and B Q Bᵀ, given) and the observation error as "
-     "your Gauss–Markov blocks; place each in its rows and columns of the 21-state"),
-    (lambda F, Q, s, T, tau: _blockdiag(F, np.eye(6)), lambda F, Q, s, T, tau: _blockdiag(Q, np.zeros((6, 6))),
+     "its Gauss–Markov components; place each in its rows and columns of the 21-state"),
+    (lambda F, Q, S, T, tau: _blockdiag(F, np.eye(6)), lambda F, Q, S, T, tau: _blockdiag(Q, np.zeros((6, 6))),
      "the observation error is held constant (its block of F_aug is I and of Q_aug zero): a random "
-     "constant, which the filter would learn once and for all. Its rows are a Gauss–Markov step: use "
-     "your gauss_markov_blocks"),
-    (lambda F, Q, s, T, tau: _blockdiag(F, np.eye(6)), None,
+     "constant, which the filter would learn once and for all. Its rows are a Gauss–Markov step"),
+    (lambda F, Q, S, T, tau: _blockdiag(F, np.eye(6)), None,
      "the observation error's block of F_aug is I: with the Gauss–Markov noise added that is a random "
-     "walk, whose variance grows without bound; it decays with F_e from your gauss_markov_blocks"),
-    (None, lambda F, Q, s, T, tau: _blockdiag(Q, np.zeros((6, 6))),
+     "walk, whose variance grows without bound; each component decays with its own time constant"),
+    (None, lambda F, Q, S, T, tau: _blockdiag(Q, np.zeros((6, 6))),
      "the observation error's block of Q_aug is zero: it only decays, and the filter would soon believe "
-     "it knows the error exactly; add Q_e from your gauss_markov_blocks"),
-    (lambda F, Q, s, T, tau: _blockdiag(F, np.zeros((6, 6))), lambda F, Q, s, T, tau: _blockdiag(Q, np.diag(s ** 2)),
-     "the observation error is treated as white (F block 0, Q block σ²): that is the plain ESKF's "
-     "assumption with six useless states; use your Gauss–Markov blocks"),
-    (lambda F, Q, s, T, tau: _blockdiag(np.eye(15), _gm_F(s, T, tau)), None,
+     "it knows the error exactly; add what keeps its covariance at Σ"),
+    (lambda F, Q, S, T, tau: _blockdiag(F, np.zeros((6, 6))), lambda F, Q, S, T, tau: _blockdiag(Q, S),
+     "the observation error is treated as white (F block 0, Q block Σ): that is the plain ESKF's "
+     "assumption with six useless states"),
+    (None, lambda F, Q, S, T, tau: _blockdiag(Q, S),
+     "the whole stationary covariance Σ is added at every step, as for white noise: most of the error is "
+     "carried over by F_e, and only what keeps its covariance at Σ is new (lecture 10 §1, for one component)"),
+    (lambda F, Q, S, T, tau: _blockdiag(np.eye(15), np.diag(_decays(T, tau))), None,
      "the navigation block of F_aug is the identity: the navigation errors still move with the plain "
      "ESKF's F over the step (rows and columns 0:15)"),
-    (None, lambda F, Q, s, T, tau: _blockdiag(np.zeros((15, 15)), _gm_Q(s, T, tau)),
+    (None, lambda F, Q, S, T, tau: _blockdiag(np.zeros((15, 15)), _stationary_noise(S, T, tau)),
      "the navigation block of Q_aug is zero: the IMU's noise B Q Bᵀ still enters the navigation errors "
      "(rows and columns 0:15)"),
-    (lambda F, Q, s, T, tau: _blockdiag(_gm_F(s, T, tau), F), lambda F, Q, s, T, tau: _blockdiag(_gm_Q(s, T, tau), Q),
+    (lambda F, Q, S, T, tau: _blockdiag(np.diag(_decays(T, tau)), F),
+     lambda F, Q, S, T, tau: _blockdiag(_stationary_noise(S, T, tau), Q),
      "the order of the states: δx = [δp, δv, δθ, δb_a, δb_ω, δe], the navigation errors first (0:15), "
      "the observation error last (15:21)"),
-    (lambda F, Q, s, T, tau: _blockdiag(F, _gm_F(s, tau, T)), lambda F, Q, s, T, tau: _blockdiag(Q, _gm_Q(s, tau, T)),
-     "T and τ are swapped in the call of gauss_markov_blocks(sigma, T, tau)"),
-    (lambda F, Q, s, T, tau: _blockdiag(F, _gm_F(s, T, tau)), lambda F, Q, s, T, tau: _blockdiag(Q, _gm_Q(s ** 2, T, tau)),
-     "gauss_markov_blocks takes the standard deviations σ, not the variances σ²"),
-    (lambda F, Q, s, T, tau: _blockdiag(F, _gm_Q(s, T, tau)), lambda F, Q, s, T, tau: _blockdiag(Q, _gm_F(s, T, tau)),
-     "F_e and Q_e are swapped: gauss_markov_blocks returns (F_e, Q_e)"),
-    (lambda F, Q, s, T, tau: _coupled(F, rows=True) + _blockdiag(np.zeros((15, 15)), _gm_F(s, T, tau)), None,
+    (lambda F, Q, S, T, tau: _blockdiag(F, np.diag(np.exp(-np.asarray(tau) / T))),
+     lambda F, Q, S, T, tau: _blockdiag(Q, S * (1.0 - np.outer(*[np.exp(-np.asarray(tau) / T)] * 2))),
+     "T and τ are swapped: the share of a component that survives the step is exp(−T/τ_i)"),
+    (None, lambda F, Q, S, T, tau: _blockdiag(Q, np.diag(np.diag(S) * (1.0 - _decays(T, tau) ** 2))),
+     "the correlations between the components are dropped (only the diagonal of Q_e is filled): Σ is not "
+     "diagonal, and what is new in the error over a step is correlated too. Which covariance Q_e keeps an "
+     "error of covariance Σ at Σ after the step?" + hints.formula(" F_e Σ F_eᵀ + Q_e = Σ")),
+    (None, lambda F, Q, S, T, tau: _blockdiag(Q, np.diag(np.diag(S) ** 2 * (1.0 - _decays(T, tau) ** 2))),
+     "the diagonal of Σ holds variances (m², rad²), not standard deviations, and the correlations between "
+     "the components are dropped"),
+    (None, _rows_only, _ROWS_HINT),
+    (None, _columns_only, _ROWS_HINT.replace("row", "column")),
+    (None, _rows_symmetrised, _ROWS_HINT + "; symmetrising the result afterwards does not give that"),
+    (None, lambda F, Q, S, T, tau: _blockdiag(Q, S * (1.0 - _decays(T, tau))[:, None]),
+     "Σ − F_e Σ: the covariance carried over is F_e Σ F_eᵀ, with F_e on both sides (and Q_e must be "
+     "symmetric)"),
+    (None, lambda F, Q, S, T, tau: _blockdiag(Q, S ** 2 * (1.0 - np.outer(_decays(T, tau), _decays(T, tau)))),
+     "Σ squared entry by entry: Sigma already holds variances and covariances (m², rad²), not standard "
+     "deviations"),
+    (*_one_tau(np.mean),
+     "one time constant (the mean of tau) for all six components: each decays with its own τ_i"
+     + hints.formula(", and the covariance of components i and j keeps φ_i φ_j of itself")),
+    (*_one_tau(lambda tau: np.asarray(tau)[0]),
+     "one time constant (tau[0]) for all six components: each decays with its own τ_i"),
+    (lambda F, Q, S, T, tau: _blockdiag(F, np.eye(6) - T * np.diag(1.0 / np.asarray(tau))),
+     lambda F, Q, S, T, tau: _blockdiag(Q, T * S * np.add.outer(1.0 / np.asarray(tau), 1.0 / np.asarray(tau))),
+     "first order in T: F_e = I − T/τ and Q_e = T(AΣ + ΣA) hold for T ≪ τ only; the check's steps reach "
+     "T ≫ τ, where 1 − T/τ is negative. Each component's decay over T has an exact form, and the new part "
+     "must keep the covariance at Σ for any step"),
+    (lambda F, Q, S, T, tau: _blockdiag(F, np.eye(6) - T * np.diag(1.0 / np.asarray(tau))),
+     lambda F, Q, S, T, tau: _blockdiag(Q, S * (1.0 - np.outer(1.0 - T / np.asarray(tau), 1.0 - T / np.asarray(tau)))),
+     "first order in T: the decay 1 − T/τ_i holds for T ≪ τ only; the check's steps reach T ≫ τ, where it is "
+     "negative. How much of component i survives T seconds exactly? (Q_e from it, Σ − F_e Σ F_eᵀ, is right "
+     "once F_e is)"),
+    (lambda F, Q, S, T, tau: _blockdiag(F, np.eye(6) - T * np.diag(1.0 / np.asarray(tau))), None,
+     "F_e = I − T/τ is the first-order (Euler) step, right for T ≪ τ only; the check's steps reach T ≫ τ, "
+     "where it turns negative. How much of component i survives T seconds exactly?"),
+    (lambda F, Q, S, T, tau: _blockdiag(F, np.exp(-T / np.asarray(tau) * np.eye(6))), None,
+     "np.exp of a matrix is element-wise: the off-diagonal zeros became exp(0) = 1, coupling all six "
+     "components. Put the six decays on the diagonal instead"),
+    (lambda F, Q, S, T, tau: _blockdiag(F, np.diag(_decays(T, tau) ** 2)), None,
+     "φ_i² = exp(−2T/τ_i) is how a VARIANCE decays over the step; F_e carries the error itself"),
+    (lambda F, Q, S, T, tau: _blockdiag(F, _stationary_noise(S, T, tau)),
+     lambda F, Q, S, T, tau: _blockdiag(Q, np.diag(_decays(T, tau))),
+     "F_e and Q_e are swapped: F_e carries the error over the step, Q_e is the covariance of what is new"),
+    (lambda F, Q, S, T, tau: _coupled(F, rows=True) + _blockdiag(np.zeros((15, 15)), np.diag(_decays(T, tau))), None,
      "the observation error's rows depend on the pose error (POSE_G in rows 15:21): over one IMU step "
      "nothing couples them, since the error belongs to the map matcher, not to the vehicle's motion. "
      "The updates correlate them, and P carries that correlation; F_aug is block-diagonal"),
-    (lambda F, Q, s, T, tau: _coupled(F, rows=False) + _blockdiag(np.zeros((15, 15)), _gm_F(s, T, tau)), None,
+    (lambda F, Q, S, T, tau: _coupled(F, rows=False) + _blockdiag(np.zeros((15, 15)), np.diag(_decays(T, tau))), None,
      "the pose errors' rows depend on the observation error (POSE_Gᵀ in columns 15:21): the vehicle's "
      "motion does not depend on the map matcher's error; F_aug is block-diagonal"),
 ]
 
 
+def _aug_label(F, BQBt, Sigma, T, tau) -> str:
+    return f"T = {T:g} s, τ = ({', '.join(f'{v:.3g}' for v in tau)}) s, Σ with correlations"
+
+
 @check(uses=("gauss_markov_blocks",))
 def check_augmented_matrices(augmented_matrices):
-    """``augmented_matrices(F, BQBt, sigma, T, tau)`` returns (F_aug (21, 21), Q_aug (21, 21))."""
+    """``augmented_matrices(F, BQBt, Sigma, T, tau)`` returns (F_aug (21, 21), Q_aug (21, 21)).
+
+    Σ (6, 6) is the observation error's stationary covariance (correlated components), τ (6,)
+    one time constant per component.
+    """
     cases = augmented_cases()
-    labels = [f"T = {T:g} s, τ = {tau:g} s (T/τ = {T / tau:.2g})" for _, _, _, T, tau in cases]
+    labels = [_aug_label(*case) for case in cases]
     results = [_pair(call(augmented_matrices, *case), "augmented_matrices", ("F_aug", "Q_aug")) for case in cases]
-    F_got = [_array(r[0], (21, 21), f"F_aug ({label})") for r, label in zip(results, labels)]
-    Q_got = [_array(r[1], (21, 21), f"Q_aug ({label})") for r, label in zip(results, labels)]
+    try:
+        F_got = [_array(r[0], (21, 21), f"F_aug ({label})") for r, label in zip(results, labels)]
+        Q_got = [_array(r[1], (21, 21), f"Q_aug ({label})") for r, label in zip(results, labels)]
+    except CheckFailed as exc:
+        if "NaN or inf" not in str(exc):
+            raise
+        raise CheckFailed(f"{exc}. Hint: the check's steps reach T = 1000 τ; there each component's share that "
+                          "survives the step is tiny but finite, between 0 and 1: an exponent with the wrong sign, "
+                          "or a division by a decay, overflows") from None
     F_ok = all(_close(g, _aug_F(*c), ATOL) for g, c in zip(F_got, cases))
     Q_ok = all(_close(g, _aug_Q(*c), ATOL) for g, c in zip(Q_got, cases))
     if F_ok and Q_ok:
@@ -602,6 +756,11 @@ def check_augmented_matrices(augmented_matrices):
         raise CheckFailed(f"F_aug and Q_aug differ from the reference ({labels[0]}) by round-off only. "
                           f"Hint: {SINGLE_PRECISION}")
     blocks = (("the navigation errors", slice(0, 15)), ("the observation error", slice(15, 21)))
+    sources = {("F_aug", 0): "the plain ESKF's F", ("Q_aug", 0): "the plain ESKF's B Q Bᵀ",
+               ("F_aug", 15): "F_e: how much of each component survives the step, each with its own τ_i",
+               ("Q_aug", 15): "Q_e: what keeps an error of covariance Σ at Σ after the step, for any T "
+                              "(lecture 10 §1 does it for one component)"
+                              + hints.formula(": F_e Σ F_eᵀ + Q_e = Σ")}
     for name, got, ref in (("F_aug", F_got, _aug_F), ("Q_aug", Q_got, _aug_Q)):
         for g, c, label in zip(got, cases, labels):
             e = ref(*c)
@@ -614,10 +773,12 @@ def check_augmented_matrices(augmented_matrices):
                     if r != col:
                         raise CheckFailed(f"{where} should be zero. Hint: over one step nothing couples the "
                                           "observation error to the navigation errors")
-                    source = ("the plain ESKF's F" if name == "F_aug" else "the plain ESKF's B Q Bᵀ") \
-                        if r.start == 0 else ("F_e" if name == "F_aug" else "Q_e") + " of your gauss_markov_blocks"
+                    if name == "Q_aug" and r.start == 15 and not _close(g[r, col], g[r, col].T, ATOL):
+                        raise CheckFailed(f"{where} is not symmetric. Hint: a covariance is symmetric; entry "
+                                          "(i, j) of what is new depends on both components' decays alike")
                     raise CheckFailed(f"{where} differs from the reference (max abs error "
-                                      f"{np.abs(g[r, col] - e[r, col]).max():.3g}). Hint: it is {source}")
+                                      f"{np.abs(g[r, col] - e[r, col]).max():.3g}). Hint: it is "
+                                      f"{sources[(name, r.start)]}")
 
 
 # --------------------------------------------------------------------------------------
@@ -766,12 +927,39 @@ def check_relative_motion(relative_motion):
 
 
 @functools.lru_cache(maxsize=None)
-def residual_cases():
-    """(label, clone p, R, current p, R, Δp_m, ΔR_m): KITTI truth poses, measured increment simulated.
+def camera_lever_arms() -> tuple:
+    """Lever arms t (3,) m of a camera in the body frame: KITTI's cam0 from its calibration (real,
+    about 1.10 m ahead, 0.32 m right, 0.75 m above the IMU) and :data:`MADE_UP_LEVER_ARM`; under a
+    run seed the second is drawn (0.5–2 m in a random direction)."""
+    frames = load_kitti("turns").frames
+    kitti = -frames.R_cam_imu.T @ frames.t_cam_imu
+    other = MADE_UP_LEVER_ARM.copy()
+    if inputs.drawing():
+        g = inputs.rng("real_sensors.lever_arm", 15)
+        other = g.normal(size=3)
+        other *= g.uniform(0.5, 2.0) / np.linalg.norm(other)
+    for t in (kitti, other):
+        t.setflags(write=False)
+    return kitti, other
 
-    The measurement is the true increment with seeded noise: 3 cm in Δp and 0.02–0.05 rad in ΔR
-    (under a run seed: the pairs of :func:`pose_pairs`, other noise, its ΔR scales drawn from
-    0.02–0.05 rad).
+
+_NO_LEVER_ARM = np.zeros(3)
+_NO_LEVER_ARM.setflags(write=False)
+
+
+def _camera_increment(dp, dR, t):
+    """The camera's displacement seen from the clone's body, Δp + ΔR t − t, for an IMU increment (Δp, ΔR)."""
+    return dp + dR @ t - t
+
+
+@functools.lru_cache(maxsize=None)
+def residual_cases():
+    """(label, clone p, R, current p, R, Δp_m, ΔR_m, t): KITTI truth poses, measured increment simulated.
+
+    First the IMU's own increments (t = 0); then the same pose pairs with a camera at each lever
+    arm of :func:`camera_lever_arms`. The measurement is the true increment (the camera's) with
+    seeded noise: 3 cm in Δp and 0.02–0.05 rad in ΔR (under a run seed: the pairs of
+    :func:`pose_pairs`, other noise, its ΔR scales drawn from 0.02–0.05 rad).
     """
     rng = inputs.rng("real_sensors.residual", 13)
     scales = (0.02, 0.05, 0.03, 0.04, 0.05)
@@ -779,52 +967,62 @@ def residual_cases():
         scales = tuple(rng.uniform(0.02, 0.05, len(scales)))
     out = []
     scales += tuple(rng.uniform(0.02, 0.05, len(turn_sweep_pairs())))
-    for (label, p0, R0, p1, R1), scale in zip(pose_pairs()[:len(POSE_PAIRS)] + turn_sweep_pairs(), scales):
+    pairs = pose_pairs()[:len(POSE_PAIRS)] + turn_sweep_pairs()
+    settings = [(pair, scale, _NO_LEVER_ARM, "") for pair, scale in zip(pairs, scales)]
+    for t, name in zip(camera_lever_arms(), ("KITTI's cam0", "a camera")):
+        settings += [(pair, scale, t, f"; increments of {name} at lever arm ({', '.join(f'{v:.2f}' for v in t)}) m")
+                     for pair, scale in zip(pose_pairs()[:len(POSE_PAIRS)], rng.uniform(0.02, 0.05, len(POSE_PAIRS)))]
+    for (label, p0, R0, p1, R1), scale, t, camera in settings:
         dp, dR = eskf_relative.relative_motion(p0, R0, p1, R1)
-        dp_m, dR_m = dp + rng.normal(size=3) * 0.03, dR @ so3.exp(rng.normal(size=3) * scale)
-        case = (p0, R0, p1, R1, dp_m, dR_m)
+        dp_m, dR_m = _camera_increment(dp, dR, t) + rng.normal(size=3) * 0.03, dR @ so3.exp(rng.normal(size=3) * scale)
+        case = (p0, R0, p1, R1, dp_m, dR_m, t)
         for arr in case:
             arr.setflags(write=False)
-        out.append((f"clone and current pose: {label}; measured increment with simulated noise", *case))
+        out.append((f"clone and current pose: {label}{camera}; measured increment with simulated noise", *case))
     return tuple(out)
 
 
-def _ref_residual(pc, Rc, p, R, dp_m, dR_m):
-    return eskf_relative.relative_pose_residual(pc, Rc, p, R, dp_m, dR_m)
+def _ref_residual(pc, Rc, p, R, dp_m, dR_m, t=_NO_LEVER_ARM):
+    y = eskf_relative.relative_pose_residual(pc, Rc, p, R, dp_m, dR_m)
+    dp, dR = eskf_relative.relative_motion(pc, Rc, p, R)
+    return np.r_[y[:3] + dR @ t - t, y[3:]]
 
 
-def _residual_tolerance(pc, Rc, p, R, dp_m, dR_m) -> np.ndarray:
+def _residual_tolerance(pc, Rc, p, R, dp_m, dR_m, t=_NO_LEVER_ARM) -> np.ndarray:
     """Per entry: 1e-9 m on the position part, |y_θ|² + 1e-12 on the attitude part."""
-    y_theta = _ref_residual(pc, Rc, p, R, dp_m, dR_m)[3:]
+    y_theta = _ref_residual(pc, Rc, p, R, dp_m, dR_m, t)[3:]
     return np.r_[np.full(3, 1e-9), np.full(3, float(y_theta @ y_theta) + 1e-12)]
 
 
 def _with_theta(theta: Callable):
     """A residual formula with the right position part and the attitude part ``theta(ΔŘ, ΔR_m)``."""
-    def formula(pc, Rc, p, R, dp_m, dR_m):
+    def formula(pc, Rc, p, R, dp_m, dR_m, t=_NO_LEVER_ARM):
         dp, dR = eskf_relative.relative_motion(pc, Rc, p, R)
-        return np.r_[dp - dp_m, theta(dR, dR_m)]
+        return np.r_[_camera_increment(dp, dR, t) - dp_m, theta(dR, dR_m)]
     return formula
 
 
-def _swapped(pc, Rc, p, R, dp_m, dR_m):
+def _swapped(pc, Rc, p, R, dp_m, dR_m, t=_NO_LEVER_ARM):
     dp, dR = eskf_relative.relative_motion(p, R, pc, Rc)
-    return np.r_[dp - dp_m, so3.log(dR_m.T @ dR)]
+    return np.r_[_camera_increment(dp, dR, t) - dp_m, so3.log(dR_m.T @ dR)]
+
+
+def _no_lever_arm(pc, Rc, p, R, dp_m, dR_m, t=_NO_LEVER_ARM):
+    return _ref_residual(pc, Rc, p, R, dp_m, dR_m)
 
 
 _RESIDUAL_MISTAKES = [
-    (lambda pc, Rc, p, R, dp_m, dR_m: np.zeros(6),
+    (lambda pc, Rc, p, R, dp_m, dR_m, t=_NO_LEVER_ARM: np.zeros(6),
      "the residual is zero: nothing was compared. Predict the increment from the clone to the current "
      "pose (your relative_motion) and compare it with the measured one"),
     (_with_theta(lambda dR, dR_m: so3.log(dR) - so3.log(dR_m)),
      "rotation vectors do not subtract: Log(ΔŘ) − Log(ΔR_m) is close to the rotation between them only "
      "when both are small, and an increment over a turn is not. Compose the two rotations and take one "
      "Log, so that the result is the attitude error in the current body frame (as in chapter 08)"),
-    (lambda pc, Rc, p, R, dp_m, dR_m: -_ref_residual(pc, Rc, p, R, dp_m, dR_m),
+    (lambda *case: -_ref_residual(*case),
      "sign (both parts): with error = nominal − true the residual is prediction minus measurement, as in "
      "chapter 08, so that y ≈ G δx with G's δp block R_cᵀ and δθ block +I"),
-    (lambda pc, Rc, p, R, dp_m, dR_m: np.r_[-_ref_residual(pc, Rc, p, R, dp_m, dR_m)[:3],
-                                            _ref_residual(pc, Rc, p, R, dp_m, dR_m)[3:]],
+    (lambda *case: np.r_[-_ref_residual(*case)[:3], _ref_residual(*case)[3:]],
      "sign of the position part: prediction minus measurement, Δp̌ − Δp_m"),
     (_with_theta(lambda dR, dR_m: so3.log(dR.T @ dR_m)),
      "sign of the attitude part: the prediction relative to the measurement, as in chapter 08 (lecture 10 §2)"
@@ -841,58 +1039,112 @@ _RESIDUAL_MISTAKES = [
     (_swapped,
      "the increment was predicted from the current pose to the clone: the clone is the EARLIER pose, so "
      "the motion since then is T_c⁻¹ T (relative_motion(clone, current)), as the VO's increment is"),
-    (lambda pc, Rc, p, R, dp_m, dR_m: np.r_[(p - pc) - dp_m, so3.log(dR_m.T @ Rc.T @ R)],
+    (lambda pc, Rc, p, R, dp_m, dR_m, t=_NO_LEVER_ARM: np.r_[_camera_increment(p - pc, Rc.T @ R, t) - dp_m,
+                                                            so3.log(dR_m.T @ Rc.T @ R)],
      "the predicted displacement is in the navigation frame, the measured one in the clone's body "
      "frame: predict it with your relative_motion"),
-    (lambda pc, Rc, p, R, dp_m, dR_m: np.r_[_ref_residual(pc, Rc, p, R, dp_m, dR_m)[3:],
-                                            _ref_residual(pc, Rc, p, R, dp_m, dR_m)[:3]],
+    (_no_lever_arm,
+     "the camera's lever arm is ignored: the measured increment is the camera's, and the cell's line "
+     "dp_camera predicts it from the IMU's; compare dp_camera, not the IMU's Δp̌, with Δp_m"),
+    (lambda *case: np.r_[_ref_residual(*case)[3:], _ref_residual(*case)[:3]],
      "order: y = [position part; attitude part], as G's rows"),
 ]
 
 
+def _residual_args(case):
+    """The arguments a case passes: the IMU's own increments as six, a camera's with its lever arm."""
+    return case[:6] if not np.any(case[6]) else case
+
+
 @check(uses=("relative_motion",))
 def check_relative_pose_residual(relative_pose_residual):
-    """``relative_pose_residual(p_clone, R_clone, p_check, R_check, dp_meas, dR_meas)`` returns y (6,).
+    """``relative_pose_residual(p_clone, R_clone, p_check, R_check, dp_meas, dR_meas, lever_arm=0)`` returns y (6,).
 
     The attitude part is accepted within |y_θ|² of the Log (see the module notes).
     """
     cases = residual_cases()
     labels = [c[0] for c in cases]
     args = [c[1:] for c in cases]
-    got = [_array(call(relative_pose_residual, *a), (6,), f"y ({label})") for a, label in zip(args, labels)]
+    got = [_array(_call_with_lever_arm(relative_pose_residual, "relative_pose_residual", _residual_args(a)), (6,),
+                  f"y ({label})") for a, label in zip(args, labels)]
     _judge("y", got, args, labels, _ref_residual, _RESIDUAL_MISTAKES,
            "the residual compares the predicted increment with the measured one (lecture 10 §2): the difference "
-           "of the displacements in the clone's body frame, then the attitude error of the predicted increment "
-           "against the measured one, as a rotation vector in the current body frame"
-           + hints.formula(": y = [Δp̌ − Δp_m; Log(ΔR_mᵀ ΔŘ)]"),
+           "of the (camera's) displacements in the clone's body frame, then the attitude error of the predicted "
+           "increment against the measured one, as a rotation vector in the current body frame"
+           + hints.formula(": y = [Δp̌_camera − Δp_m; Log(ΔR_mᵀ ΔŘ)]"),
            atol=_residual_tolerance, rtol=0.0)
+
+
+def _call_with_lever_arm(fn, name: str, args):
+    """The learner's function, with a lever arm where the case has one; a signature without it is named."""
+    try:
+        return call(fn, *args)
+    except CheckFailed as exc:
+        if "positional argument" in str(exc) and "TypeError" in str(exc):
+            raise CheckFailed(f"{name} takes the camera's lever arm too, as its last argument "
+                              "(lever_arm=np.zeros(3): the IMU's own increments). Hint: keep the cell's first "
+                              "line as it is") from None
+        raise
+
+
+def _camera_residual_of_error(pc, Rc, p, R, t):
+    """y(δx_a) of the camera's relative pose at fixed nominal poses: the true poses from the error
+    (error = nominal − true), the measurement the true camera increment, noise-free."""
+    def residual(dx):
+        p_true_c, R_true_c = pc - dx[15:18], Rc @ so3.exp(-dx[18:21])
+        p_true, R_true = p - dx[0:3], R @ so3.exp(-dx[6:9])
+        dp_m, dR_m = eskf_relative.relative_motion(p_true_c, R_true_c, p_true, R_true)
+        return _ref_residual(pc, Rc, p, R, _camera_increment(dp_m, dR_m, t), dR_m, t)
+    return residual
 
 
 @functools.lru_cache(maxsize=None)
 def jacobian_cases():
-    """(label, R_clone, Δp̌, ΔŘ, G by central differences) for the nominal pose pairs."""
+    """(label, R_clone, Δp̌, ΔŘ, t, G by central differences): the nominal pose pairs with t = 0, the two
+    nearest a half turn, then the pose pairs again with each camera lever arm of :func:`camera_lever_arms`."""
     out = []
     half_turns = [pair for pair in turn_sweep_pairs() if so3.angle(pair[2].T @ pair[4]) > 3.0]
-    for label, pc, Rc, p, R in pose_pairs() + tuple(half_turns[-2:]):
+    settings = [(pair, _NO_LEVER_ARM, "") for pair in pose_pairs() + tuple(half_turns[-2:])]
+    for t, name in zip(camera_lever_arms(), ("KITTI's cam0", "a camera")):
+        settings += [(pair, t, f"; increments of {name} at lever arm ({', '.join(f'{v:.2f}' for v in t)}) m")
+                     for pair in pose_pairs()[:len(POSE_PAIRS)]]
+    for (label, pc, Rc, p, R), t, camera in settings:
         dp, dR = eskf_relative.relative_motion(pc, Rc, p, R)
-        G = relative_jacobian_by_differences(pc, Rc, p, R, FD_STEP)
+        if np.any(t):
+            G = numerical_jacobian(_camera_residual_of_error(pc, Rc, p, R, t), np.zeros(21), FD_STEP)
+        else:
+            G = relative_jacobian_by_differences(pc, Rc, p, R, FD_STEP)
         for arr in (dp, dR, G):
             arr.setflags(write=False)
-        out.append((f"clone and current pose: {label}", Rc, dp, dR, G))
+        out.append((f"clone and current pose: {label}{camera}", Rc, dp, dR, t, G))
     return tuple(out)
 
 
 _G_ROWS = (("y_p", 0, 3), ("y_θ", 3, 6))
 _G_COLS = (("δp", 0, 3), ("δv", 3, 6), ("δθ", 6, 9), ("δb_a", 9, 12), ("δb_ω", 12, 15), ("δp_c", 15, 18),
            ("δθ_c", 18, 21))
-_G_FORMULAS = {("y_p", "δp"): "Ř_cᵀ", ("y_p", "δp_c"): "−Ř_cᵀ", ("y_p", "δθ_c"): "[Δp̌]×",
-               ("y_θ", "δθ"): "I", ("y_θ", "δθ_c"): "−ΔŘᵀ"}
+_G_FORMULAS = {("y_p", "δp"): "Ř_cᵀ", ("y_p", "δθ"): "−ΔŘ [t]×", ("y_p", "δp_c"): "−Ř_cᵀ",
+               ("y_p", "δθ_c"): "[Δp̌ + ΔŘ t]×", ("y_θ", "δθ"): "I", ("y_θ", "δθ_c"): "−ΔŘᵀ"}
 
 
-def _g_alternatives(Rc, dp, dR) -> dict:
-    """Known wrong values of the blocks of G, with the hint for each."""
+def _reference_jacobian(Rc, dp, dR, t) -> np.ndarray:
+    """G (6, 21) of the camera's relative-pose residual: the package's for t = 0 plus the lever arm's terms."""
+    G = eskf_relative.relative_pose_jacobian(Rc, dp, dR)
+    G[0:3, 6:9] = -dR @ so3.hat(t)
+    G[0:3, 18:21] = so3.hat(dp + dR @ t)
+    return G
+
+
+def _g_alternatives(Rc, dp, dR, t) -> dict:
+    """Known wrong values of the blocks of G, with the hint for each (q = Δp̌ + ΔŘ t, where the current
+    camera is seen from the clone's body; q = Δp̌ without a lever arm)."""
     hat = so3.hat
-    return {
+    q = dp + dR @ t
+    lever = np.any(t)
+    forgot_lever = ("the lever arm is the whole vector from the clone's IMU to the current CAMERA, seen from the "
+                    "clone's body: an attitude error of the clone turns the frame in which all of it is seen"
+                    + hints.formula(" (Δp̌ + ΔŘ t)"))
+    alternatives = {
         ("y_p", "δp_c"): [
             (Rc.T, "sign: the clone's position error enters the predicted displacement p̌ − p̌_c with a minus"),
             (-np.eye(3), "the displacement is seen from the clone's body frame: the clone's position error is "
@@ -901,15 +1153,15 @@ def _g_alternatives(Rc, dp, dR) -> dict:
                   + hints.formula(": −Ř_cᵀ")),
         ],
         ("y_p", "δθ_c"): [
-            (-hat(dp), "sign of the lever arm: expand the true clone attitude to first order in δθ_c (lecture 10 "
-                       "§2, error = nominal − true)"
-                       + hints.formula(": with Ř_c = R_c Exp(δθ_c), R_cᵀ = Exp(δθ_c) Ř_cᵀ ≈ (I + [δθ_c]×) Ř_cᵀ, "
-                                       "so the true increment is Δp̌ + δθ_c × Δp̌ and y_p gains −δθ_c × Δp̌ = "
-                                       "[Δp̌]× δθ_c")),
+            (-hat(q), "sign of the lever arm: expand the true clone attitude to first order in δθ_c (lecture 10 "
+                      "§2, error = nominal − true)"
+                      + hints.formula(": with Ř_c = R_c Exp(δθ_c), R_cᵀ = Exp(δθ_c) Ř_cᵀ ≈ (I + [δθ_c]×) Ř_cᵀ, "
+                                      "so the true increment gains δθ_c × q with q = Δp̌ + ΔŘ t, and y_p gains "
+                                      "−δθ_c × q = [q]× δθ_c")),
             (np.zeros((3, 3)), "missing: an attitude error of the clone turns the frame in which the displacement "
-                               "is seen, so it moves y_p by a lever arm (lecture 10 §2)" + hints.formula(", [Δp̌]× δθ_c")),
-            (hat(Rc @ dp), "the lever arm is the displacement in the clone's BODY frame, Δp̌, not in the "
-                           "navigation frame"),
+                               "is seen, so it moves y_p by a lever arm (lecture 10 §2)" + hints.formula(", [Δp̌ + ΔŘ t]× δθ_c")),
+            (hat(Rc @ q), "the lever arm is the displacement in the clone's BODY frame, not in the "
+                          "navigation frame"),
         ],
         ("y_θ", "δθ_c"): [
             (-np.eye(3), "the clone's attitude error lives in the clone's body frame, the residual's attitude "
@@ -922,30 +1174,59 @@ def _g_alternatives(Rc, dp, dR) -> dict:
                         "the increment into the current body frame (lecture 10 §2)" + hints.formula(": −ΔŘᵀ")),
         ],
     }
+    if lever:
+        alternatives[("y_p", "δθ_c")] = [
+            (hat(dp), forgot_lever + "; lecture 10 §2's block is for t = 0" + hints.formula(": [Δp̌ + ΔŘ t]×, not [Δp̌]×")),
+            (hat(dp + dR @ t - t), forgot_lever + "; the clone's own camera sits at t in the clone's body, fixed "
+                                   "there, and does not move when the clone's attitude is wrong, so the −t of the "
+                                   "camera's displacement does not belong in this block"
+                                   + hints.formula(": [Δp̌ + ΔŘ t]×, not [Δp̌ + ΔŘ t − t]×")),
+            (hat(dp + t), forgot_lever + "; the lever arm t is in the CURRENT body frame, which is turned against "
+                          "the clone's" + hints.formula(": ΔŘ t, not t")),
+            (-hat(dp), forgot_lever + ", and its sign follows from error = nominal − true"),
+        ] + alternatives[("y_p", "δθ_c")]
+        alternatives[("y_p", "δθ")] = [
+            (np.zeros((3, 3)), "missing: the current pose's attitude error swings the camera about the IMU, so "
+                               "it moves the predicted camera displacement by the lever arm turned wrongly "
+                               "(expand ΔŘ t with Ř = R Exp(δθ))" + hints.formula("; the block is −ΔŘ [t]×")),
+            (dR @ hat(t), "sign of the lever arm's block: expand the true attitude to first order in δθ with "
+                          "error = nominal − true, Ř = R Exp(δθ)"
+                          + hints.formula(": the true R t is Ř Exp(−δθ) t ≈ Ř(t + t × δθ), so y_p gains "
+                                          "ΔŘ (δθ × t) = −ΔŘ [t]× δθ")),
+            (-hat(t), "the swing of the camera happens in the current body frame; seen from the clone it is turned "
+                      "across the increment" + hints.formula(": −ΔŘ [t]×")),
+            (-hat(dR @ t), "order: the cross product is taken in the current body frame, where δθ lives, and then "
+                           "turned into the clone's" + hints.formula(": −ΔŘ [t]×; −[ΔŘ t]× = −ΔŘ [t]× ΔŘᵀ turns δθ as well")),
+            (-Rc.T @ hat(t), "the lever arm's block is seen from the clone across the increment, by ΔŘ = Ř_cᵀ Ř, "
+                             "not by Ř_cᵀ alone"),
+        ]
+    return alternatives
 
 
 @check
 def check_relative_pose_jacobian(relative_pose_jacobian):
-    """``relative_pose_jacobian(R_clone, dp_check, dR_check)`` returns G (6, 21).
+    """``relative_pose_jacobian(R_clone, dp_check, dR_check, lever_arm=0)`` returns G (6, 21).
 
-    Compared with central differences of the residual (see the module notes); a wrong block is
-    named, and the placeholder's empty clone columns are recognised.
+    Compared with central differences of the residual (see the module notes), first for the IMU's
+    own increments (three arguments), then for a camera's at a lever arm; a wrong block is named,
+    and the placeholder's empty clone columns are recognised.
     """
-    for label, Rc, dp, dR, G_fd in jacobian_cases():
-        value = call(relative_pose_jacobian, Rc, dp, dR)
+    for label, Rc, dp, dR, t, G_fd in jacobian_cases():
+        args = (Rc, dp, dR, t) if np.any(t) else (Rc, dp, dR)
+        value = _call_with_lever_arm(relative_pose_jacobian, "relative_pose_jacobian", args)
         if np.shape(value) == (6, 15):
             raise CheckFailed("G has shape (6, 15), expected (6, 21): the residual also depends on the clone's "
                               "errors δp_c and δθ_c, columns 15:21 of the augmented error state")
         G = _array(value, (6, 21), f"G ({label})")
         if _close(G, G_fd, JACOBIAN_ATOL, rtol=0.0):
             continue
-        ref = eskf_relative.relative_pose_jacobian(Rc, dp, dR)
+        ref = _reference_jacobian(Rc, dp, dR, t)
         if _close(G[:, :15], ref[:, :15], JACOBIAN_ATOL, rtol=0.0) and not G[:, 15:].any():
             raise CheckFailed(f"G's clone columns 15:21 are all zero ({label}): the clone was treated as exactly "
                               "known. Hint: the residual compares the motion since the clone, so the clone's "
                               "position and attitude errors move it too; fill the blocks (y_p, δp_c), "
                               "(y_p, δθ_c) and (y_θ, δθ_c) (lecture 10 §2)")
-        alternatives = _g_alternatives(Rc, dp, dR)
+        alternatives = _g_alternatives(Rc, dp, dR, t)
         for rname, r0, r1 in _G_ROWS:
             for cname, c0, c1 in _G_COLS:
                 g, e = G[r0:r1, c0:c1], ref[r0:r1, c0:c1]
@@ -957,14 +1238,17 @@ def check_relative_pose_jacobian(relative_pose_jacobian):
                         raise CheckFailed(f"{where} is wrong. Hint: {why}")
                 formula = _G_FORMULAS.get((rname, cname), "0")
                 if not e.any():
-                    raise CheckFailed(f"{where} should be zero: the residual does not depend on {cname}")
+                    raise CheckFailed(f"{where} should be zero: the residual does not depend on {cname}"
+                                      + (" (without a lever arm the current attitude error does not move the "
+                                         "displacement: −ΔŘ [t]× is zero for t = 0)" if cname == "δθ" else ""))
                 if not g.any():
                     raise CheckFailed(f"{where} is missing (all zeros). Hint: the residual depends on {cname} "
                                       "(lecture 10 §2)" + hints.formula(f"; the block is {formula}"))
                 raise CheckFailed(f"{where} differs from central differences of the residual (max abs error "
                                   f"{np.abs(g - e).max():.3g}). Hint: make the true poses from the error "
-                                  "(error = nominal − true, Ř = R Exp(δθ)) and expand the residual to first order "
-                                  "(lecture 10 §2)" + hints.formula(f"; the block is {formula}"))
+                                  "(error = nominal − true, Ř = R Exp(δθ)), the true camera increment from them, "
+                                  "and expand the residual to first order (lecture 10 §2 does it for t = 0)"
+                                  + hints.formula(f"; the block is {formula}"))
 
 
 # --------------------------------------------------------------------------------------

@@ -1,5 +1,6 @@
 """Chapter 05 (the EKF): plausible mistakes in radar h(x), its Jacobian, the wrapped residual
-and the EKF update, and correct variants of each."""
+and the EKF update (whose measurement may lack entries: NaN in y, not measured), and correct
+variants of each."""
 
 from mutation_harness import Edit, Equivalent
 
@@ -11,14 +12,23 @@ _BEARING_ROW = "G[1, 0], G[1, 1] = -py / r2, px / r2"
 _HEADING = "G[2, 3] = (py * vx - px * vy) / r"
 _WRAP = "e[1] = np.pi - np.mod(np.pi - e[1], 2 * np.pi)"
 _DIFF = "e = np.asarray(y, dtype=float) - np.asarray(y_pred, dtype=float)"
-_S = "S = G_k @ P_check @ G_k.T + R"
+_MEASURED = "measured = np.isfinite(y)"
+_YPRED = "y_pred = g(x_check)"
+_INNOVATION = "innovation = residual(np.where(measured, y, y_pred), y_pred)[measured]"
+_GK = "G_k = G(x_check)[measured]"
+_RK = "R_k = R[np.ix_(measured, measured)]"
+_S = "S = G_k @ P_check @ G_k.T + R_k"
 _K = "K = P_check @ G_k.T @ np.linalg.inv(S)"
-_INNOVATION = "innovation = residual(y, g(x_check))"
 _X = "x_hat = x_check + K @ innovation"
 _P = "P_hat = (np.eye(len(x_check)) - K @ G_k) @ P_check"
+# the measured entries' residual, rows of G and block of R (NaN entries of y were not measured)
+_SELECT = _INNOVATION + "\n    " + _GK + "\n    " + _RK
 # the whole update, the exercise's multi-line section
-_UPDATE = ("G_k = G(x_check)\n    " + _S + "\n    " + _K + "\n    " + _INNOVATION + "\n    " + _X + "\n    "
-           + _P)
+_UPDATE = ("measured = np.isfinite(y)                      # the entries the sensor delivered\n    "
+           + _YPRED + "\n    " + _SELECT + "\n    " + _S + "\n    " + _K + "\n    " + _X + "\n    " + _P)
+# the lecture's five equations typed in as they stand, for a y without NaN
+_LECTURE = ("G_k = G(x_check)\n    S = G_k @ P_check @ G_k.T + R\n    " + _K
+            + "\n    innovation = residual(y, g(x_check))\n    " + _X + "\n    " + _P)
 # the range rate's derivatives with respect to the CTRV velocity components (v, ψ)
 _VELOCITY_COLUMNS = "G[2, 2] = (px * np.cos(psi) + py * np.sin(psi)) / r\n    " + _HEADING
 
@@ -128,29 +138,51 @@ MUTANTS = [
     Edit("radar_residual", _WRAP, "e[1] = np.pi - np.mod(np.pi - y[1], 2 * np.pi) - y_pred[1]",
          keyword="must be wrapped", mistake="the measured bearing wrapped, not the difference"),
     # --- ekf_update ------------------------------------------------------------------------
-    Edit("ekf_update", _INNOVATION, "innovation = residual(y, G_k @ x_check)", keyword="g(x̌)",
+    Edit("ekf_update", _YPRED, "y_pred = G(x_check) @ x_check", keyword="g(x̌)",
          mistake="predicted measurement G x̌"),
     Edit("ekf_update", _UPDATE, "x_hat, P_hat = x_check, P_check", keyword="measurement was not used",
          mistake="the posterior is the prior, the measurement ignored (the stub of the whole update)"),
     Edit("ekf_update", _X, "x_hat = x_check", keyword="measurement was not used",
          mistake="covariance updated, mean left at the prior"),
-    Edit("ekf_update", _INNOVATION, "innovation = y - G_k @ x_check", keyword="nonlinear model",
+    Edit("ekf_update", _INNOVATION, "innovation = (y - G(x_check) @ x_check)[measured]", keyword="nonlinear model",
          mistake="the linear KF's residual y − G x̌"),
-    Edit("ekf_update", _INNOVATION, "innovation = y - g(x_check)", keyword="residual function",
+    Edit("ekf_update", _INNOVATION, "innovation = (y - y_pred)[measured]", keyword="residual function",
          mistake="plain difference instead of the residual function"),
-    Edit("ekf_update", _INNOVATION, "innovation = residual(g(x_check), y)", keyword="sign",
-         mistake="residual predicted minus measured"),
+    Edit("ekf_update", _INNOVATION, "innovation = residual(y_pred, np.where(measured, y, y_pred))[measured]",
+         keyword="sign", mistake="residual predicted minus measured"),
+    # --- ekf_update: the entries of y that were not measured (NaN) -------------------------
+    Edit("ekf_update", _UPDATE, _LECTURE, keyword="full-length vectors of numbers",
+         mistake="the lecture's equations as they stand: the NaN of a missing entry handed to the residual"),
+    Edit("ekf_update", _SELECT, "innovation = residual(np.where(measured, y, y_pred), y_pred)\n    "
+         "G_k = G(x_check)\n    R_k = R", keyword="residual of 0",
+         mistake="missing entries filled with the prediction and kept: a residual of 0 that shrinks P̂"),
+    Edit("ekf_update", _SELECT, "innovation = residual(np.nan_to_num(y), y_pred)\n    G_k = G(x_check)\n    R_k = R",
+         keyword="number 0", mistake="NaN set to 0 (np.nan_to_num) and kept as a measurement of 0"),
+    Edit("ekf_update", _SELECT, "innovation = residual(np.where(measured, y, y_pred), y_pred)\n    "
+         "G_k = G(x_check) * measured[:, None]\n    R_k = R", keyword="correlations",
+         mistake="the missing rows of G zeroed, R kept whole (its correlations change the gain)"),
+    Edit("ekf_update", _RK, "R_k = R[measured]", keyword="both the rows and the columns",
+         mistake="R's rows of the measured entries, all its columns (a shape error)"),
+    Edit("ekf_update", _RK, "R_k = np.diag(np.diag(R)[measured])", keyword="diagonal",
+         mistake="the measured entries' variances alone, R's correlations dropped"),
+    Edit("ekf_update", _INNOVATION, "innovation = residual(y[measured], y_pred[measured])", keyword="by its position",
+         mistake="the residual function called on the shortened vectors (the bearing is no longer entry 1)"),
+    Edit("ekf_update", _MEASURED, "measured = np.isfinite(y)\n    if not measured.all():\n"
+         "        return x_check.copy(), P_check.copy()", keyword="the others were measured",
+         mistake="any missing entry makes the whole measurement be skipped"),
+    Edit("ekf_update", _UPDATE, _LECTURE.replace("G_k = G(x_check)", "y = np.nan_to_num(y)\n    G_k = G(x_check)"),
+         keyword="number 0", mistake="the lecture's equations with NaN replaced by 0 first"),
     Edit("ekf_update", _X, "x_hat = x_check - K @ innovation", keyword="sign",
          mistake="correction subtracted"),
     Edit("ekf_update", _X, "x_hat = K @ innovation", keyword="prior mean x̌ is missing",
          mistake="prior mean left out of x̂"),
     Edit("ekf_update", _S, "S = G_k @ P_check @ G_k.T", keyword="noise R",
          mistake="R left out of S"),
-    Edit("ekf_update", _S, "S = G_k @ P_check @ G_k.T + np.sqrt(R)", keyword="variances",
+    Edit("ekf_update", _S, "S = G_k @ P_check @ G_k.T + np.sqrt(R_k)", keyword="variances",
          mistake="√R (standard deviations) in S"),
-    Edit("ekf_update", _S, "S = G_k @ P_check @ G_k.T + R @ R", keyword="squares it",
+    Edit("ekf_update", _S, "S = G_k @ P_check @ G_k.T + R_k @ R_k", keyword="squares it",
          mistake="R R in S"),
-    Edit("ekf_update", _S, "S = G_k @ P_check @ G_k.T + np.diag(np.diag(R))", keyword="diagonal",
+    Edit("ekf_update", _S, "S = G_k @ P_check @ G_k.T + np.diag(np.diag(R_k))", keyword="diagonal",
          mistake="only the diagonal of R"),
     Edit("ekf_update", _K, "K = G_k.T @ np.linalg.inv(S)", keyword="factor P̌",
          mistake="P̌ missing from the gain"),
@@ -164,7 +196,8 @@ MUTANTS = [
          mistake="K G P̌"),
     Edit("ekf_update", _P, "P_hat = (np.eye(len(x_check)) - K @ G_k) @ P_check @ (np.eye(len(x_check)) - K @ G_k).T",
          keyword="K R Kᵀ", mistake="Joseph form without K R Kᵀ"),
-    Edit("ekf_update", _P, "P_hat = (np.eye(len(x_check)) - K @ G(x_hat)) @ P_check", keyword="linearisation point",
+    Edit("ekf_update", _P, "P_hat = (np.eye(len(x_check)) - K @ G(x_hat)[measured]) @ P_check",
+         keyword="linearisation point",
          mistake="G re-evaluated at x̂ for the covariance"),
     # the caller's arrays changed in place (the values are right: the harness names the side effect)
     Edit("ekf_update", _X, "x_check += K @ innovation\n    x_hat = x_check", keyword="in place",
@@ -216,7 +249,7 @@ EQUIVALENTS = [
     Edit("ekf_update", _K, "K = P_check @ G_k.T @ np.linalg.pinv(S)", mistake="pseudo-inverse"),
     Edit("ekf_update", _K, "L = np.linalg.cholesky(S)\n    K = np.linalg.solve(L.T, np.linalg.solve(L, G_k @ P_check)).T",
          mistake="Cholesky solve"),
-    Edit("ekf_update", _P, "I_KG = np.eye(len(x_check)) - K @ G_k\n    P_hat = I_KG @ P_check @ I_KG.T + K @ R @ K.T",
+    Edit("ekf_update", _P, "I_KG = np.eye(len(x_check)) - K @ G_k\n    P_hat = I_KG @ P_check @ I_KG.T + K @ R_k @ K.T",
          mistake="Joseph form"),
     Edit("ekf_update", _P, "P_hat = P_check - K @ S @ K.T", mistake="P̌ − K S Kᵀ"),
     Edit("ekf_update", _P, "P_hat = P_check - K @ G_k @ P_check", mistake="P̌ − K G P̌"),
@@ -226,14 +259,28 @@ EQUIVALENTS = [
     Edit("ekf_update", _X, "x_hat = x_check + P_check @ G_k.T @ np.linalg.solve(S, innovation)",
          mistake="S⁻¹ r by a solve"),
     Edit("ekf_update", _UPDATE,
-         "G_k = G(x_check)\n    R_inv = np.linalg.inv(R)\n"
+         "m = ~np.isnan(y)\n    y_pred = g(x_check)\n    G_k = G(x_check)[m]\n"
+         "    R_inv = np.linalg.inv(R[m][:, m])\n"
          "    P_hat = np.linalg.inv(np.linalg.inv(P_check) + G_k.T @ R_inv @ G_k)\n"
-         "    x_hat = x_check + P_hat @ G_k.T @ R_inv @ residual(y, g(x_check))",
-         mistake="the whole update in information form"),
+         "    x_hat = x_check + P_hat @ G_k.T @ R_inv @ residual(np.where(m, y, 0.0), y_pred)[m]",
+         mistake="the whole update in information form (np.isnan, R[m][:, m], the missing entries filled with 0)"),
     Edit("ekf_update", _UPDATE,
-         "G_k = G(x_check)\n    PGt = P_check @ G_k.T\n    K = np.linalg.solve(G_k @ PGt + R, PGt.T).T\n"
-         "    x_hat = x_check + K @ residual(y, g(x_check))\n    P_hat = P_check - K @ G_k @ P_check",
-         mistake="the whole update with a solve and P̌ − K G P̌"),
+         "idx = np.flatnonzero(np.isfinite(y))\n    y_full = np.array(y, dtype=float)\n"
+         "    y_full[np.isnan(y_full)] = g(x_check)[np.isnan(y_full)]\n"
+         "    G_k = G(x_check)[idx]\n    PGt = P_check @ G_k.T\n"
+         "    K = np.linalg.solve(G_k @ PGt + R[np.ix_(idx, idx)], PGt.T).T\n"
+         "    x_hat = x_check + K @ residual(y_full, g(x_check))[idx]\n    P_hat = P_check - K @ G_k @ P_check",
+         mistake="the whole update with indices, a solve and P̌ − K G P̌"),
+    Edit("ekf_update", _UPDATE,
+         "measured = np.isfinite(y)\n    if not measured.any():\n        return x_check.copy(), P_check.copy()\n"
+         "    " + _YPRED + "\n    " + _SELECT + "\n    " + _S + "\n    " + _K + "\n    " + _X + "\n    " + _P,
+         mistake="nothing measured handled on its own: the prior, copied"),
+    Edit("ekf_update", _SELECT, "innovation = residual(np.where(measured, y, y_pred), y_pred)\n    G_k = G(x_check)\n"
+         "    R_k = R.copy()\n    R_k[~measured, :] = 0.0\n    R_k[:, ~measured] = 0.0\n"
+         "    R_k[~measured, ~measured] = 1e12",
+         mistake="missing entries kept with a residual of 0 and a variance of 1e12, uncorrelated (an approximation "
+                 "within the tolerance: 1e-12 relative)"),
+    Edit("ekf_update", _MEASURED, "measured = ~np.isnan(y)", mistake="~np.isnan instead of np.isfinite"),
     Edit("radar_residual", _WRAP, "e[1] = np.unwrap([0.0, e[1]])[1]", mistake="numpy's unwrap"),
     Edit("radar_h", _RATE, "rho_dot = np.dot([px, py], [v * np.cos(psi), v * np.sin(psi)]) / np.linalg.norm([px, py])",
          mistake="ρ̇ by a dot product and a norm"),
@@ -263,9 +310,9 @@ MUTANTS += [
          mistake="4 columns, as in the lecture's CV Jacobian", cell="jac"),
     Edit("ekf_update", _X, "x_hat = x_check + innovation @ K", keyword="Kᵀ",
          mistake="r @ K instead of K @ r"),
-    Edit("ekf_update", _S, "S = G_k @ P_check @ G_k + R", keyword="transpose",
+    Edit("ekf_update", _S, "S = G_k @ P_check @ G_k + R_k", keyword="transpose",
          mistake="G P̌ G instead of G P̌ Gᵀ"),
-    Edit("ekf_update", _K, "K = P_check @ G_k.T @ np.linalg.inv(R)", keyword="R⁻¹",
+    Edit("ekf_update", _K, "K = P_check @ G_k.T @ np.linalg.inv(R_k)", keyword="R⁻¹",
          mistake="R⁻¹ instead of S⁻¹"),
     Edit("ekf_update", _K, "K = P_check @ G_k.T @ S", keyword="inverse",
          mistake="S instead of S⁻¹"),

@@ -1,16 +1,20 @@
 """Chapter 07 (rotations and IMU mechanisation): plausible mistakes in the exercise's functions.
 
-The solution's cells (ids ``att``, ``vel``, ``pos``, ``run``, ``level``) hold ``attitude_step``,
-``velocity_step``, ``position_step``, ``mechanise`` and the optional challenge's
-``level_attitude``; an edit of one of the first three graded by ``mechanisation_run`` tests the
-dependency-aware hint. Every stub of the exercise is a mutant here, marked "(the stub)".
+The solution's cells (ids ``att``, ``att-nb``, ``vel``, ``pos``, ``run``, ``level``) hold
+``attitude_step_bn`` (the step of C = R_bn, which the learner derives), ``attitude_step`` (the
+R_nb step built from it), ``velocity_step``, ``position_step``, ``mechanise`` and the optional
+challenge's ``level_attitude``; an edit of a step graded by the check of a function that calls
+it (``attitude_step``, ``mechanisation_run``) tests the dependency-aware hint. Every stub of the exercise is a mutant here, marked "(the stub)".
 """
 
 from mutation_harness import Edit, Equivalent
 
 NOTEBOOK = "07_imu_mechanisation"
 
-_ATT = "R_next = R @ so3.Exp(w_mean * dt)\n"
+_ATT = "C_next = so3.Exp(-w_mean * dt) @ C\n"
+# attitude_step: R_nb in, R_nb out, through attitude_step_bn (cell att-nb)
+_TO_C = "C = R.T"
+_TO_R = "R_next = C_next.T"
 _W = "w_mean = 0.5 * (w0 + w1) - b_w"
 _A0 = "a0 = R0 @ (f0 - b_a) + g"
 _A1 = "a1 = R1 @ (f1 - b_a) + g"
@@ -40,76 +44,101 @@ _EULER = """roll = np.arctan2(f[1], f[2])
     pitch = np.arctan2(-f[0], np.hypot(f[1], f[2]))
     R = so3.Exp(pitch * np.array([0.0, 1.0, 0.0])) @ so3.Exp(roll * np.array([1.0, 0.0, 0.0]))"""
 
-_RODRIGUES = """phi = w_mean * dt
+# Rodrigues' formula for the step's rotation backwards, Exp(−φ), applied to C on the left
+_RODRIGUES = """phi = -w_mean * dt
     theta = np.linalg.norm(phi)
     K = so3.hat(phi)
-    R_next = R @ (np.eye(3) + np.sin(theta) / theta * K + (1 - np.cos(theta)) / theta**2 * K @ K)
+    C_next = (np.eye(3) + np.sin(theta) / theta * K + (1 - np.cos(theta)) / theta**2 * K @ K) @ C
 """
 
-_RODRIGUES_GUARDED = """phi = w_mean * dt
+_RODRIGUES_GUARDED = """phi = -w_mean * dt
     theta = np.linalg.norm(phi)
     K = so3.hat(phi)
     if theta < 1e-8:
-        R_next = R @ (np.eye(3) + K + 0.5 * K @ K)
+        C_next = (np.eye(3) + K + 0.5 * K @ K) @ C
     else:
-        R_next = R @ (np.eye(3) + np.sin(theta) / theta * K + (1 - np.cos(theta)) / theta**2 * K @ K)
+        C_next = (np.eye(3) + np.sin(theta) / theta * K + (1 - np.cos(theta)) / theta**2 * K @ K) @ C
 """
+_SERIES = "C_next = (np.eye(3) + K + 0.5 * K @ K) @ C"
 
 MUTANTS = [
-    # --- attitude_step -------------------------------------------------------------------
-    Edit("attitude_step", _ATT, "R_next = so3.Exp(w_mean * dt) @ R\n", keyword="body frame",
-         mistake="Exp(ω̄T) R: the body-frame rotation multiplied on the left (the stub)"),
-    Edit("attitude_step", _ATT, "R_next = R.T @ so3.Exp(w_mean * dt)\n", keyword="transpose",
-         mistake="Rᵀ Exp(ω̄T)"),
-    Edit("attitude_step", _ATT, "R_next = (R @ so3.Exp(w_mean * dt)).T\n", keyword="transpose",
-         mistake="the result transposed (R_bn instead of R_nb)"),
-    Edit("attitude_step", _ATT, "R_next = R @ so3.Exp(-w_mean * dt)\n", keyword="sign",
-         mistake="Exp(−ω̄T): the rotation turned backwards"),
-    Edit("attitude_step", _W, "w_mean = 0.5 * (w0 + w1)", keyword="bias",
+    # --- attitude_step_bn: the step of C = R_bn = R_nbᵀ, derived from the lecture's --------
+    Edit("attitude_step_bn", _ATT, "C_next = C\n", keyword="did not change",
+         mistake="C left as it was (the stub)"),
+    Edit("attitude_step_bn", _ATT, "C_next = C @ so3.Exp(w_mean * dt)\n", keyword="lecture 07's step for R",
+         mistake="C Exp(ω̄T): the lecture's step for R_nb applied to C"),
+    Edit("attitude_step_bn", _ATT, "C_next = so3.Exp(w_mean * dt) @ C\n", keyword="transposed too",
+         mistake="Exp(ω̄T) C: the order reversed, the rotation not transposed"),
+    Edit("attitude_step_bn", _ATT, "C_next = C @ so3.Exp(-w_mean * dt)\n", keyword="reverses the order",
+         mistake="C Exp(−ω̄T): the rotation transposed, the order kept"),
+    Edit("attitude_step_bn", _ATT, "C_next = C.T @ so3.Exp(w_mean * dt)\n", keyword="returns the new R_nb",
+         mistake="Cᵀ Exp(ω̄T): the new R_nb returned in place of C"),
+    Edit("attitude_step_bn", _ATT, "C_next = so3.Exp(-w_mean * dt) @ C.T\n", keyword="do not transpose C",
+         mistake="Exp(−ω̄T) Cᵀ"),
+    Edit("attitude_step_bn", _ATT, "C_next = so3.Exp(w_mean * dt) @ C.T\n",
+         keyword="is the transpose of lecture 07's R_nb", mistake="Exp(φ) Cᵀ: no listed mistake, the fallback hint"),
+    Edit("attitude_step_bn", _ATT, "C_next = (C @ so3.Exp(w_mean * dt)).T\n", keyword="do not transpose C",
+         mistake="(C Exp(φ))ᵀ: the lecture's step on C, transposed"),
+    Edit("attitude_step_bn", _W, "w_mean = 0.5 * (w0 + w1)", keyword="bias",
          mistake="gyro bias not subtracted"),
-    Edit("attitude_step", _W, "w_mean = 0.5 * (w0 + w1) + b_w", keyword="not added",
+    Edit("attitude_step_bn", _W, "w_mean = 0.5 * (w0 + w1) + b_w", keyword="not added",
          mistake="gyro bias added"),
-    Edit("attitude_step", _W, "w_mean = 0.5 * (w0 + w1 - b_w)", keyword="not halved",
+    Edit("attitude_step_bn", _W, "w_mean = 0.5 * (w0 + w1 - b_w)", keyword="not halved",
          mistake="gyro bias halved with the rates"),
-    Edit("attitude_step", _W, "w_mean = w0 - b_w", keyword="midpoint",
+    Edit("attitude_step_bn", _W, "w_mean = w0 - b_w", keyword="midpoint",
          mistake="Euler: the rate at the start of the step"),
-    Edit("attitude_step", _W, "w_mean = w1 - b_w", keyword="midpoint",
+    Edit("attitude_step_bn", _W, "w_mean = w1 - b_w", keyword="midpoint",
          mistake="the rate at the end of the step"),
-    Edit("attitude_step", _W, "w_mean = (w0 + w1) - b_w", keyword="half their sum",
+    Edit("attitude_step_bn", _W, "w_mean = (w0 + w1) - b_w", keyword="half their sum",
          mistake="sum of the rates instead of their mean (the ½ missing)"),
-    Edit("attitude_step", _ATT, "R_next = R @ so3.Exp(w_mean)\n", keyword="multiply by dt",
+    Edit("attitude_step_bn", _ATT, "C_next = so3.Exp(-w_mean) @ C\n", keyword="multiply by dt",
          mistake="rate used as a rotation vector (dt missing)"),
-    Edit("attitude_step", _ATT, "R_next = R @ so3.Exp(w_mean * dt**2)\n", keyword="T²",
+    Edit("attitude_step_bn", _ATT, "C_next = so3.Exp(-w_mean * dt**2) @ C\n", keyword="T²",
          mistake="φ = ω̄ T² instead of ω̄ T"),
-    Edit("attitude_step", _ATT, "R_next = R @ so3.Exp(w_mean * dt / 2)\n", keyword="half of it",
+    Edit("attitude_step_bn", _ATT, "C_next = so3.Exp(-w_mean * dt / 2) @ C\n", keyword="half of it",
          mistake="half the rotation of the step"),
-    Edit("attitude_step", _ATT, "R_next = R @ so3.Exp(np.deg2rad(w_mean) * dt)\n", keyword="radians",
+    Edit("attitude_step_bn", _ATT, "C_next = so3.Exp(-np.deg2rad(w_mean) * dt) @ C\n", keyword="radians",
          mistake="rates converted from degrees although they are in rad/s"),
-    Edit("attitude_step", _ATT, "R_next = R @ so3.Exp(np.rad2deg(w_mean) * dt)\n", keyword="radians",
+    Edit("attitude_step_bn", _ATT, "C_next = so3.Exp(-np.rad2deg(w_mean) * dt) @ C\n", keyword="radians",
          mistake="rates converted to degrees"),
-    Edit("attitude_step", _ATT, "R_next = R @ (np.eye(3) + so3.hat(w_mean * dt))\n", keyword="first-order",
-         mistake="first-order I + [φ]× without renormalising"),
-    Edit("attitude_step", _ATT, "R_next = R @ so3.orthonormalise(np.eye(3) + so3.hat(w_mean * dt))\n",
-         keyword="first-order", mistake="first-order I + [φ]×, re-orthonormalised"),
-    Edit("attitude_step", _ATT,
-         "R_next = R @ so3.quat_to_matrix(np.concatenate([[1.0], 0.5 * w_mean * dt]))\n",
-         keyword="first-order", mistake="first-order quaternion (1, φ/2), normalised"),
-    Edit("attitude_step", _ATT, _RODRIGUES, keyword="divides 0 by 0",
+    Edit("attitude_step_bn", _ATT, "C_next = (np.eye(3) - so3.hat(w_mean * dt)) @ C\n", keyword="first-order",
+         mistake="first-order I − [φ]× (Ċ = −[ω]× C by Euler) without renormalising"),
+    Edit("attitude_step_bn", _ATT, "C_next = C - so3.hat(w_mean) @ C * dt\n", keyword="first-order",
+         mistake="Euler on Ċ = −[ω]× C"),
+    Edit("attitude_step_bn", _ATT, "C_next = so3.orthonormalise(np.eye(3) - so3.hat(w_mean * dt)) @ C\n",
+         keyword="first-order", mistake="first-order I − [φ]×, re-orthonormalised"),
+    Edit("attitude_step_bn", _ATT,
+         "C_next = so3.quat_to_matrix(np.concatenate([[1.0], -0.5 * w_mean * dt])) @ C\n",
+         keyword="first-order", mistake="first-order quaternion (1, −φ/2), normalised"),
+    Edit("attitude_step_bn", _ATT, _RODRIGUES, keyword="divides 0 by 0",
          mistake="own Rodrigues' formula without a small-angle branch (NaN at ω̄ = 0)"),
-    Edit("attitude_step", _ATT, _RODRIGUES_GUARDED.replace("/ theta**2 * K @ K)", "/ theta * K @ K)"),
+    Edit("attitude_step_bn", _ATT, _RODRIGUES_GUARDED.replace("/ theta**2 * K @ K)", "/ theta * K @ K)"),
          keyword="rotation matrix", mistake="own Rodrigues' formula with (1 − cos θ)/θ instead of /θ²"),
-    Edit("attitude_step", _ATT, "R_next = R @ so3.Exp(w_mean) * dt\n", keyword="rotation matrix",
+    Edit("attitude_step_bn", _ATT, "C_next = so3.Exp(-w_mean) @ C * dt\n", keyword="rotation matrix",
          mistake="dt multiplied outside the exponential"),
-    Edit("attitude_step", _ATT, "R_next = R @ so3.Exp(0.5 * (w0 - b_w) * dt) @ so3.Exp(0.5 * (w1 - b_w) * dt)\n",
+    Edit("attitude_step_bn", _ATT,
+         "C_next = so3.Exp(-0.5 * (w1 - b_w) * dt) @ so3.Exp(-0.5 * (w0 - b_w) * dt) @ C\n",
          keyword="two half-steps", mistake="two half-step rotations instead of one of the mean rate"),
-    Edit("attitude_step", _W, "w_mean = np.mean([w0, w1]) - b_w", keyword="axis 0",
+    Edit("attitude_step_bn", _W, "w_mean = np.mean([w0, w1]) - b_w", keyword="axis 0",
          mistake="mean over all six numbers"),
-    Edit("attitude_step", _W, "w_mean = np.mean([w0, w1], axis=1) - b_w", keyword="axis 0",
+    Edit("attitude_step_bn", _W, "w_mean = np.mean([w0, w1], axis=1) - b_w", keyword="axis 0",
          mistake="mean over the wrong axis (shape (2,))"),
-    Edit("attitude_step", _ATT, "R_next = R\n", keyword="did not change",
-         mistake="the attitude not updated"),
-    Edit("attitude_step", _ATT, "R_next = so3.Exp(w_mean * dt)\n", keyword="previous attitude",
+    Edit("attitude_step_bn", _ATT, "C_next = so3.Exp(-w_mean * dt)\n", keyword="previous attitude",
          mistake="the previous attitude forgotten"),
+
+    # --- attitude_step: R_nb through attitude_step_bn ------------------------------------
+    Edit("attitude_step", _TO_C, "C = R", cell="att-nb", keyword="not R itself",
+         mistake="R handed to attitude_step_bn as if it were C (the stub of the first line)"),
+    Edit("attitude_step", _TO_R, "R_next = C_next", cell="att-nb", keyword="transpose it back",
+         mistake="C_next returned as R_next (the stub of the second line)"),
+    Edit("attitude_step", "C_next = attitude_step_bn(C, w0, w1, b_w, dt)\n    # BEGIN SOLUTION attitude_step\n"
+         "    R_next = C_next.T", "C_next = attitude_step_bn(R, w0, w1, b_w, dt)\n    # BEGIN SOLUTION attitude_step\n"
+         "    R_next = C_next", cell="att-nb", keyword="and transpose what it returns",
+         mistake="no conversion at all: R in, C out"),
+    Edit("attitude_step", _ATT, "C_next = C @ so3.Exp(w_mean * dt)\n", cell="att",
+         keyword="fix attitude_step_bn first", mistake="attitude_step_bn is the lecture's R step: blamed upstream"),
+    Edit("attitude_step", _W, "w_mean = 0.5 * (w0 + w1)", cell="att", keyword="fix attitude_step_bn first",
+         mistake="attitude_step_bn without the bias: blamed upstream"),
 
     # --- velocity_step (a whole step of three lines in the exercise) ---------------------
     Edit("velocity_step", _VEL, _VEL_STUB, keyword="body frame",
@@ -249,41 +278,45 @@ MUTANTS = [
     Edit("mechanisation_run", _VEL_CALL, "v[i] = v[i - 1]", keyword="never change",
          mistake="the velocity not propagated"),
     # a correct mechanise with a wrong step function: the hint must blame the step
-    Edit("mechanisation_run", _ATT, "R_next = so3.Exp(w_mean * dt) @ R\n", cell="att",
-         keyword="fix attitude_step first", mistake="attitude_step multiplies on the left"),
+    Edit("mechanisation_run", _ATT, "C_next = C @ so3.Exp(w_mean * dt)\n", cell="att",
+         keyword="fix attitude_step_bn first", mistake="attitude_step_bn is the lecture's R step (two levels up)"),
+    Edit("mechanisation_run", _TO_R, "R_next = C_next", cell="att-nb",
+         keyword="fix attitude_step first", mistake="attitude_step returns C_next"),
     Edit("mechanisation_run", _ACC, _ACC.replace("+ g", "- g"), cell="vel",
          keyword="fix velocity_step first", mistake="velocity_step with the wrong gravity sign"),
     Edit("mechanisation_run", _PNEXT, "p_next = p + v0 * dt", cell="pos",
          keyword="fix position_step first", mistake="position_step with Euler's rule"),
 
     # --- the sweep of the singular regimes (issue 25): small-angle switches and series ------
-    Edit("attitude_step", _ATT, _RODRIGUES_GUARDED.replace("theta < 1e-8", "theta < 1e-9").replace(
-        "R_next = R @ (np.eye(3) + K + 0.5 * K @ K)", "R_next = R"), keyword="small rotations",
-         mistake="below 1e-9 rad the step returns R unchanged (error |φ| up to 1e-9, 10× the tolerance)"),
-    Edit("attitude_step", _ATT, _RODRIGUES_GUARDED.replace("theta < 1e-8", "np.linalg.norm(w_mean) < 1e-9").replace(
-        "R_next = R @ (np.eye(3) + K + 0.5 * K @ K)", "R_next = R.copy()"), keyword="small rotations",
-         mistake="the switch on the rate, not the angle: below 1e-9 rad/s R unchanged (0.5 s steps turn 5e-10 rad)"),
-    Edit("attitude_step", _ATT, _RODRIGUES_GUARDED.replace("theta < 1e-8", "theta < 1e-3").replace(
-        "R_next = R @ (np.eye(3) + K + 0.5 * K @ K)", "R_next = R @ (np.eye(3) + K)"), keyword="first-order",
+    Edit("attitude_step_bn", _ATT, _RODRIGUES_GUARDED.replace("theta < 1e-8", "theta < 1e-9").replace(
+        _SERIES, "C_next = C"), keyword="small rotations",
+         mistake="below 1e-9 rad the step returns C unchanged (error |φ| up to 1e-9, 10× the tolerance)"),
+    Edit("attitude_step_bn", _ATT, _RODRIGUES_GUARDED.replace("theta < 1e-8", "np.linalg.norm(w_mean) < 1e-9").replace(
+        _SERIES, "C_next = C.copy()"), keyword="small rotations",
+         mistake="the switch on the rate, not the angle: below 1e-9 rad/s C unchanged (0.5 s steps turn 5e-10 rad)"),
+    Edit("attitude_step_bn", _ATT, _RODRIGUES_GUARDED.replace("theta < 1e-8", "theta < 1e-3").replace(
+        _SERIES, "C_next = (np.eye(3) + K) @ C"), keyword="first-order",
          mistake="the first-order I + [φ]× below 1e-3 rad (error ½|φ|² up to 5e-7; not a rotation)"),
-    Edit("attitude_step", _ATT, _RODRIGUES_GUARDED.replace("theta < 1e-8", "theta < 3e-3"),
+    Edit("attitude_step_bn", _ATT, _RODRIGUES_GUARDED.replace("theta < 1e-8", "theta < 3e-3"),
          keyword="truncated series", mistake="the second-order series kept up to 3e-3 rad (error |φ|³/6 up to 4.5e-9)"),
-    Edit("attitude_step", _ATT, _RODRIGUES_GUARDED.replace("theta < 1e-8", "np.max(phi) < 1e-8"),
+    Edit("attitude_step_bn", _ATT, _RODRIGUES_GUARDED.replace("theta < 1e-8", "np.max(phi) < 1e-8"),
          keyword="truncated series", mistake="the switch on the largest component, not the norm (every rotation "
                                              "about an all-negative axis takes the series)"),
-    Edit("attitude_step", _ATT, "theta = np.linalg.norm(w_mean * dt) % (2 * np.pi)\n"
+    Edit("attitude_step_bn", _ATT, "theta = np.linalg.norm(w_mean * dt) % (2 * np.pi)\n"
          "    axis = w_mean / max(np.linalg.norm(w_mean), 1e-300)\n"
-         "    R_next = R @ so3.Exp(min(theta, 2 * np.pi - theta) * axis)\n", keyword="large rotation",
+         "    C_next = so3.Exp(-min(theta, 2 * np.pi - theta) * axis) @ C\n", keyword="large rotation",
          mistake="the angle folded into [0, π] without turning the axis round (wrong beyond π)"),
     # --- behaviour: arguments changed in place, single precision (issue 25) -----------------
-    Edit("attitude_step", _ATT, "R[:] = R @ so3.Exp(w_mean * dt)\n    R_next = R.copy()\n", keyword="in place",
-         mistake="the new attitude written into the caller's R"),
-    Edit("attitude_step", _ATT, "R @= so3.Exp(w_mean * dt)\n    R_next = R\n", keyword="in place",
-         mistake="R @= Exp(φ): the caller's R turned in place, and returned"),
-    Edit("attitude_step", _W, "w0 += w1\n    w0 *= 0.5\n    w_mean = w0 - b_w", keyword="in place",
+    Edit("attitude_step_bn", _ATT, "C[:] = so3.Exp(-w_mean * dt) @ C\n    C_next = C.copy()\n", keyword="in place",
+         mistake="the new attitude written into the caller's C"),
+    Edit("attitude_step_bn", _ATT, "C[...] = so3.Exp(-w_mean * dt) @ C\n    C_next = C\n", keyword="in place",
+         mistake="the caller's C turned in place, and returned"),
+    Edit("attitude_step_bn", _W, "w0 += w1\n    w0 *= 0.5\n    w_mean = w0 - b_w", keyword="in place",
          mistake="the mean rate accumulated into the caller's w0"),
-    Edit("attitude_step", _ATT, "R_next = (R @ so3.Exp(w_mean * dt)).astype(np.float32)\n",
+    Edit("attitude_step_bn", _ATT, "C_next = (so3.Exp(-w_mean * dt) @ C).astype(np.float32)\n",
          keyword="single precision", mistake="the attitude in float32"),
+    Edit("attitude_step", _TO_R, "R_next = C_next.T.astype(np.float32)", cell="att-nb",
+         keyword="single precision", mistake="R_next in float32"),
     # (the first case is an IMU at rest, whose increment is zero: there v comes back unchanged but
     # is the caller's own array, which is named first)
     Edit("velocity_step", _VNEXT, "v += 0.5 * (a0 + a1) * dt\n    v_next = v", keyword="argument v",
@@ -348,27 +381,34 @@ MUTANTS = [
 ]
 
 EQUIVALENTS = [
-    # attitude_step: tolerance ATOL 1e-10 (imu.ATTITUDE_ATOL): every exact evaluation of Exp
-    # agrees to ~1e-15, while the closest mistake (a re-orthonormalised first-order form) errs
-    # by ~3e-6 on the "tumbling" case
-    Edit("attitude_step", _ATT, _RODRIGUES_GUARDED,
-         mistake="the lecture's Rodrigues' formula with a second-order series below 1e-8 rad"),
-    Edit("attitude_step", _ATT, "R_next = R @ so3.exp(w_mean * dt)\n", mistake="so3.exp instead of so3.Exp"),
-    Edit("attitude_step", _ATT, _RODRIGUES_GUARDED.replace("theta < 1e-8", "theta < 1e-4"),
+    # attitude_step_bn: tolerance ATOL 1e-10 (imu.ATTITUDE_ATOL), on C's step transposed back:
+    # every exact evaluation of Exp agrees to ~1e-15, while the closest mistake (a
+    # re-orthonormalised first-order form) errs by ~3e-6 on the "tumbling" case
+    Edit("attitude_step_bn", _ATT, "C_next = so3.Exp(w_mean * dt).T @ C\n", mistake="Exp(φ)ᵀ C"),
+    Edit("attitude_step_bn", _ATT, "C_next = (C.T @ so3.Exp(w_mean * dt)).T\n",
+         mistake="the lecture's step of R = Cᵀ, transposed back"),
+    Edit("attitude_step_bn", _ATT, _RODRIGUES_GUARDED,
+         mistake="Rodrigues' formula of −φ with a second-order series below 1e-8 rad"),
+    Edit("attitude_step_bn", _ATT, "C_next = so3.exp(-w_mean * dt) @ C\n", mistake="so3.exp instead of so3.Exp"),
+    Edit("attitude_step_bn", _ATT, _RODRIGUES_GUARDED.replace("theta < 1e-8", "theta < 1e-4"),
          mistake="Rodrigues with the second-order series below 1e-4 rad (error θ³/6 ≤ 2e-13)"),
-    Edit("attitude_step", _ATT, "q = so3.quat_multiply(so3.matrix_to_quat(R), so3.quat_exp(w_mean * dt))\n"
-         "    R_next = so3.quat_to_matrix(q)\n", mistake="the attitude kept as a quaternion, q ⊗ q{φ}"),
-    Edit("attitude_step", _ATT, "R_next = R @ so3.quat_to_matrix(so3.quat_exp(w_mean * dt))\n",
+    Edit("attitude_step_bn", _ATT, "q = so3.quat_multiply(so3.quat_exp(-w_mean * dt), so3.matrix_to_quat(C))\n"
+         "    C_next = so3.quat_to_matrix(q)\n", mistake="the attitude kept as a quaternion, q{−φ} ⊗ q"),
+    Edit("attitude_step_bn", _ATT, "C_next = so3.quat_to_matrix(so3.quat_exp(-w_mean * dt)) @ C\n",
          mistake="via a unit quaternion"),
-    Edit("attitude_step", _ATT, "from scipy.linalg import expm\n    R_next = R @ expm(so3.hat(w_mean * dt))\n",
+    Edit("attitude_step_bn", _ATT, "from scipy.linalg import expm\n    C_next = expm(-so3.hat(w_mean * dt)) @ C\n",
          mistake="matrix exponential of the skew matrix"),
-    Edit("attitude_step", _ATT, "from scipy.spatial.transform import Rotation\n"
-         "    R_next = R @ Rotation.from_rotvec(w_mean * dt).as_matrix()\n", mistake="scipy's Rotation"),
-    Edit("attitude_step", _ATT, "R_next = (so3.Exp(-w_mean * dt) @ R.T).T\n", mistake="(Exp(−φ) Rᵀ)ᵀ"),
-    Edit("attitude_step", _ATT, "R_next = (R @ so3.Exp(w_mean * dt)).tolist()\n", mistake="a nested list"),
-    Edit("attitude_step", _W, "w_mean = 0.5 * ((w0 - b_w) + (w1 - b_w))",
+    Edit("attitude_step_bn", _ATT, "from scipy.spatial.transform import Rotation\n"
+         "    C_next = Rotation.from_rotvec(w_mean * dt).inv().as_matrix() @ C\n", mistake="scipy's Rotation, inverted"),
+    Edit("attitude_step_bn", _ATT, "C_next = (so3.Exp(-w_mean * dt) @ C).tolist()\n", mistake="a nested list"),
+    Edit("attitude_step_bn", _W, "w_mean = 0.5 * ((w0 - b_w) + (w1 - b_w))",
          mistake="the lecture's mean of the bias-corrected rates"),
-    Edit("attitude_step", _W, "w_mean = (w0 + w1) / 2 - b_w", mistake="/ 2 instead of 0.5 *"),
+    Edit("attitude_step_bn", _W, "w_mean = (w0 + w1) / 2 - b_w", mistake="/ 2 instead of 0.5 *"),
+    # attitude_step: R_nb through attitude_step_bn, or written directly from the lecture
+    Edit("attitude_step", _TO_C, "C = np.transpose(R)", cell="att-nb", mistake="np.transpose"),
+    Edit("attitude_step", _TO_R, "R_next = np.array(C_next).T.copy()", cell="att-nb", mistake="a transposed copy"),
+    Edit("attitude_step", _TO_R, "R_next = R @ so3.Exp((0.5 * (w0 + w1) - b_w) * dt)", cell="att-nb",
+         mistake="the lecture's step for R written directly (attitude_step_bn's result unused)"),
     # velocity_step: ATOL 1e-10 m/s (imu.VELOCITY_ATOL): any order of operations rounds to
     # ~1e-14 m/s; every listed mistake changes v by ≥ 2e-3 m/s on some case
     Edit("velocity_step", _VEL, "specific = 0.5 * (R0 @ (f0 - b_a) + R1 @ (f1 - b_a))\n"
@@ -427,7 +467,7 @@ EQUIVALENTS = [
 ]
 
 EQUIVALENT_MUTANTS = [
-    Equivalent("attitude_step", _W, "w_mean = 0.5 * (w1 + w0) - b_w",
+    Equivalent("attitude_step_bn", _W, "w_mean = 0.5 * (w1 + w0) - b_w",
                reason="floating-point addition commutes exactly: the two rates in either order"),
     Equivalent("velocity_step", _A0, "a0 = g + R0 @ (f0 - b_a)",
                reason="floating-point addition commutes exactly"),

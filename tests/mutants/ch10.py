@@ -11,6 +11,13 @@ Checks and tolerances (``kalman_course/checks/real_sensors.py``):
 - relative_pose_residual: position part 1e-9 m; attitude part |y_θ|² (the first-order
   (ΔR_mᵀ ΔŘ − I)^∨ passes, see EQUIVALENTS); the mistakes err by O(|y_θ|) or O(|ΔŘ| |y_θ|) on
   increments of up to 1.45 rad.
+- augmented_matrices: the observation error's six components each have their own τ and a
+  stationary covariance Σ with correlations (up to 0.61): Q_e = Σ − F_e Σ F_eᵀ, entry by entry
+  Σ_ij (1 − φ_i φ_j); the lecture's one-τ, diagonal blocks are mistakes here ("correlations",
+  "one time constant").
+- relative_pose_residual and relative_pose_jacobian also meet a camera's increments at a lever
+  arm t (KITTI's cam0, and a made-up one), whose Jacobian gains −ΔŘ [t]× in the δθ columns and
+  [Δp̌ + ΔŘ t]× in the δθ_c columns; the lecture's t = 0 blocks are mistakes there.
 - relative_pose_jacobian: 1e-6 absolute against central differences of the residual.
 - drift_segments: rtol 1e-7 on every segment's errors of the real ORB-SLAM2 / S-PTAM tracks
   (an arccos of the trace at the smallest rotational error, 1e-3 rad, loses up to 1.8e-9 relative).
@@ -27,14 +34,22 @@ F_E = "    F_e = phi * np.eye(6)\n"
 Q_E = "    Q_e = np.diag(sigma**2 * (1.0 - phi**2))\n"
 GM_RET = "    return F_e, Q_e"
 
-GM_CALL = "    F_e, Q_e = gauss_markov_blocks(sigma, T, tau)\n"
+A_PHI = "    phi = np.exp(-T / tau)\n"
 F_NAV = "    F_aug[:15, :15] = F\n"
-F_ERR = "    F_aug[15:, 15:] = F_e\n"
+F_ERR = "    F_aug[15:, 15:] = np.diag(phi)\n"
 Q_NEW = "    Q_aug = np.zeros((21, 21))\n"
 Q_NAV = "    Q_aug[:15, :15] = BQBt\n"
-Q_ERR = "    Q_aug[15:, 15:] = Q_e\n"
-AUG_BODY = GM_CALL + "    F_aug = np.zeros((21, 21))\n" + F_NAV + F_ERR + Q_NEW + Q_NAV + Q_ERR
+Q_ERR = "    Q_aug[15:, 15:] = Sigma - phi[:, None] * Sigma * phi[None, :]\n"
+AUG_BODY = A_PHI + "    F_aug = np.zeros((21, 21))\n" + F_NAV + F_ERR + Q_NEW + Q_NAV + Q_ERR
 ERR_BLOCKS = F_ERR + Q_NEW + Q_NAV + Q_ERR          # the error block of F to the error block of Q
+#: the augmented function's first lines, down to its fix region
+AUG_HEAD = ("def augmented_matrices(F, BQBt, Sigma, T, tau):\n"
+            "    # F (15, 15), BQBt (15, 15): the plain ESKF's transition and process noise over T seconds;\n"
+            "    # Sigma (6, 6): the observation error's stationary covariance; tau (6,): its time constants (s).\n"
+            "    # Returns (F_aug (21, 21), Q_aug (21, 21)).\n"
+            "    # BEGIN SOLUTION augmented_matrices\n")
+#: the per-component blocks of the learner's own gauss_markov_blocks, taking σ from Σ's diagonal
+GM_PER_COMPONENT = "    F_e, Q_e = gauss_markov_blocks(np.sqrt(np.diag(Sigma)), T, tau)\n"
 
 DP = "    dp = R0.T @ (p1 - p0)\n"
 DR = "    dR = R0.T @ R1\n"
@@ -42,13 +57,14 @@ REL_RET = "    return dp, dR"
 
 RES_CALL = "    dp_check, dR_check = relative_motion(p_clone, R_clone, p_check, R_check)\n"
 THETA = "    dtheta = so3.Log(dR_meas.T @ dR_check)\n"
-RES_RET = "    return np.concatenate([dp_check - dp_meas, dtheta])"
+RES_RET = "    return np.concatenate([dp_camera - dp_meas, dtheta])"
 
 G_NEW = "    G = np.zeros((6, 21))\n"
+G_SWING = "    G[0:3, 6:9] = -dR_check @ so3.hat(lever_arm)\n"
 G_PC = "    G[0:3, 15:18] = -R_clone.T\n"
-G_LEVER = "    G[0:3, 18:21] = so3.hat(dp_check)\n"
+G_LEVER = "    G[0:3, 18:21] = so3.hat(dp_check + dR_check.dot(lever_arm))\n"
 G_THC = "    G[3:6, 18:21] = -dR_check.T\n"
-JAC_BODY = G_PC + G_LEVER + G_THC
+JAC_BODY = G_SWING + G_PC + G_LEVER + G_THC
 
 D_REL = "        dp, dR = relative_motion(position[i], rotation[i], position[j], rotation[j])\n"
 D_REL_TRUE = ("        dp_true, dR_true = relative_motion(true_position[i], true_rotation[i], true_position[j], "
@@ -137,35 +153,57 @@ MUTANTS = [
     _gm(Q_E, "    Q_e = np.diag(2.0 * sigma**2 * T / tau if T < 1e-4 * tau else sigma**2 * (1.0 - phi**2))\n",
         "sweep", "the first-order variance below T/τ = 1e-4"),
 
-    # ---- augmented_matrices: F_aug = blockdiag(F, F_e), Q_aug = blockdiag(B Q Bᵀ, Q_e)
+    # ---- augmented_matrices: F_aug = blockdiag(F, diag(φ_i)), Q_aug = blockdiag(B Q Bᵀ, Σ − F_e Σ F_eᵀ)
     _aug(AUG_BODY, "    F_aug, Q_aug = np.eye(21), np.zeros((21, 21))\n", "placeholder",
          "the step that does nothing (the stub)"),
     _aug(ERR_BLOCKS, "    F_aug[15:, 15:] = np.eye(6)\n" + Q_NEW + Q_NAV, "random constant",
          "the observation error held constant (F block I, no noise)"),
     _aug(F_ERR, "    F_aug[15:, 15:] = np.eye(6)\n", "random walk", "F block I with the Gauss–Markov noise"),
     _aug(Q_ERR, "", "only decays", "no Gauss–Markov noise"),
-    _aug(ERR_BLOCKS, Q_NEW + Q_NAV + "    Q_aug[15:, 15:] = np.diag(sigma**2)\n", "white",
-         "the observation error as white noise"),
+    _aug(ERR_BLOCKS, Q_NEW + Q_NAV + "    Q_aug[15:, 15:] = Sigma\n", "white", "the observation error as white noise"),
+    _aug(Q_ERR, "    Q_aug[15:, 15:] = Sigma\n", "whole stationary covariance", "all of Σ added at every step"),
     _aug(F_NAV, "    F_aug[:15, :15] = np.eye(15)\n", "identity", "the navigation block of F_aug left I"),
     _aug(F_NAV, "", "plain ESKF's F", "the navigation block of F_aug left zero"),
     _aug(Q_NAV, "", "IMU's noise", "the navigation block of Q_aug left zero"),
-    _aug(AUG_BODY, GM_CALL + "    F_aug = np.zeros((21, 21))\n    F_aug[:6, :6] = F_e\n    F_aug[6:, 6:] = F\n"
-         + Q_NEW + "    Q_aug[:6, :6] = Q_e\n    Q_aug[6:, 6:] = BQBt\n", "order of the states",
-         "the observation error first"),
-    _aug(GM_CALL, "    F_e, Q_e = gauss_markov_blocks(sigma, tau, T)\n", "swapped in the call", "T and τ swapped"),
-    _aug(GM_CALL, "    F_e, Q_e = gauss_markov_blocks(sigma**2, T, tau)\n", "standard deviations",
-         "σ² passed as σ"),
-    _aug(GM_CALL, "    Q_e, F_e = gauss_markov_blocks(sigma, T, tau)\n", "returns (F_e, Q_e)",
-         "F_e and Q_e swapped"),
+    _aug(AUG_BODY, A_PHI + "    F_aug = np.zeros((21, 21))\n    F_aug[:6, :6] = np.diag(phi)\n    F_aug[6:, 6:] = F\n"
+         + Q_NEW + "    Q_aug[:6, :6] = Sigma - phi[:, None] * Sigma * phi[None, :]\n    Q_aug[6:, 6:] = BQBt\n",
+         "order of the states", "the observation error first"),
+    _aug(A_PHI, "    phi = np.exp(-tau / T)\n", "swapped", "T and τ swapped"),
+    _aug(Q_ERR, "    Q_aug[15:, 15:] = np.diag(np.diag(Sigma) * (1.0 - phi**2))\n", "correlations",
+         "only the diagonal of Q_e (the lecture's σ²(1 − φ²) per component)"),
+    _aug(AUG_BODY, GM_PER_COMPONENT + "    F_aug = np.zeros((21, 21))\n" + F_NAV + "    F_aug[15:, 15:] = F_e\n"
+         + Q_NEW + Q_NAV + "    Q_aug[15:, 15:] = Q_e\n", "correlations",
+         "the learner's per-component gauss_markov_blocks with σ from Σ's diagonal"),
+    _aug(AUG_BODY, "    F_e, Q_e = gauss_markov_blocks(np.diag(Sigma), T, tau)\n    F_aug = np.zeros((21, 21))\n"
+         + F_NAV + "    F_aug[15:, 15:] = F_e\n" + Q_NEW + Q_NAV + "    Q_aug[15:, 15:] = Q_e\n", "variances",
+         "Σ's diagonal (variances) passed as σ, correlations dropped"),
+    _aug(Q_ERR, "    Q_aug[15:, 15:] = (1.0 - phi**2)[:, None] * Sigma\n", "row", "Σ − F_e² Σ: one decay per row"),
+    _aug(Q_ERR, "    Q_aug[15:, 15:] = Sigma * (1.0 - phi**2)\n", "column", "(1 − φ²) broadcast over Σ's columns"),
+    _aug(Q_ERR, "    Q_e = (1.0 - phi**2)[:, None] * Sigma\n    Q_aug[15:, 15:] = 0.5 * (Q_e + Q_e.T)\n",
+         "symmetrising", "one decay per row, symmetrised afterwards"),
+    _aug(Q_ERR, "    Q_aug[15:, 15:] = Sigma - phi[:, None] * Sigma\n", "both sides", "Σ − F_e Σ"),
+    _aug(Q_ERR, "    Q_aug[15:, 15:] = Sigma**2 - phi[:, None] * Sigma**2 * phi[None, :]\n", "squared",
+         "Σ squared entry by entry"),
+    _aug(A_PHI, "    phi = np.full(6, np.exp(-T / np.mean(tau)))\n", "one time constant", "the mean τ for all"),
+    _aug(A_PHI, "    phi = np.full(6, np.exp(-T / tau[0]))\n", "one time constant", "τ_0 for all"),
+    _aug(A_PHI, "    phi = 1.0 - T / tau\n", "first order", "the first-order decay 1 − T/τ_i in both blocks"),
+    _aug(F_ERR, "    F_aug[15:, 15:] = np.eye(6) - T * np.diag(1.0 / tau)\n", "Euler",
+         "the first-order F_e with the exact Q_e"),
+    _aug(F_ERR, "    F_aug[15:, 15:] = np.exp(-T / tau * np.eye(6))\n", "element-wise", "np.exp of a matrix"),
+    _aug(F_ERR, "    F_aug[15:, 15:] = np.diag(phi**2)\n", "VARIANCE", "φ² in F_e"),
+    _aug(ERR_BLOCKS, "    F_aug[15:, 15:] = Sigma - phi[:, None] * Sigma * phi[None, :]\n" + Q_NEW + Q_NAV
+         + "    Q_aug[15:, 15:] = np.diag(phi)\n", "swapped", "F_e and Q_e swapped"),
     _aug(F_ERR, F_ERR + "    F_aug[15:, :15] = eskf.POSE_G\n", "POSE_G in rows",
          "the observation error coupled to the pose error"),
     _aug(F_ERR, F_ERR + "    F_aug[:15, 15:] = eskf.POSE_G.T\n", "POSE_Gᵀ",
          "the pose error coupled to the observation error"),
     _aug(F_ERR, F_ERR + "    F_aug[15:, :15] = np.ones((6, 15)) * 1e-3\n", "should be zero",
          "some made-up coupling"),
-    _aug("def augmented_matrices(", BROKEN_GM + "def augmented_matrices(", "fix gauss_markov_blocks first",
-         "through the learner's own gauss_markov_blocks, which is wrong (dependency)"),
-
+    _aug(Q_ERR, "    Q_aug[15:, 15:] = np.triu(Sigma - phi[:, None] * Sigma * phi[None, :])\n", "not symmetric",
+         "only the upper triangle of Q_e filled"),
+    _aug(AUG_HEAD + A_PHI, BROKEN_GM + AUG_HEAD + "    phi = np.diag(gauss_markov_blocks(np.sqrt(np.diag(Sigma)), T, tau)[0])\n",
+         "fix gauss_markov_blocks first",
+         "F_e through the learner's own gauss_markov_blocks, which is wrong (dependency)"),
     # ---- relative_motion: Δp = R0ᵀ (p1 − p0), ΔR = R0ᵀ R1
     _rel(DP, "    dp = p1 - p0\n", "navigation frame", "the navigation-frame displacement (the stub)"),
     _rel(DR, "    dR = R1 @ R0.T\n", "NAVIGATION frame", "the navigation-frame rotation (the stub)"),
@@ -185,39 +223,56 @@ MUTANTS = [
          "ΔR composed into the caller's R1"),
     _rel(DR, "    dR = (R0.T @ R1).astype(np.float32)\n", "single precision", "ΔR in float32"),
 
-    # ---- relative_pose_residual: [Δp̌ − Δp_m; Log(ΔR_mᵀ ΔŘ)]
+    # ---- relative_pose_residual: [Δp̌_camera − Δp_m; Log(ΔR_mᵀ ΔŘ)]
     _res(THETA, "    dtheta = so3.Log(dR_check) - so3.Log(dR_meas)\n", "do not subtract",
          "difference of rotation vectors (the stub)"),
     _res(THETA, "    dtheta = so3.Log(dR_check.T @ dR_meas)\n", "sign of the attitude", "Log(ΔŘᵀ ΔR_m)"),
     _res(THETA, "    dtheta = so3.Log(dR_check @ dR_meas.T)\n", "wrong side", "Log(ΔŘ ΔR_mᵀ)"),
     _res(THETA, "    dtheta = so3.Log(dR_meas @ dR_check.T)\n", "side and sign", "Log(ΔR_m ΔŘᵀ)"),
     _res(THETA, "    dtheta = so3.Log(dR_meas @ dR_check)\n", "transpose is missing", "Log(ΔR_m ΔŘ)"),
-    _res(RES_RET, "    return np.concatenate([dp_meas - dp_check, so3.Log(dR_check.T @ dR_meas)])", "both parts",
+    _res(RES_RET, "    return np.concatenate([dp_meas - dp_camera, so3.Log(dR_check.T @ dR_meas)])", "both parts",
          "measurement minus prediction"),
-    _res(RES_RET, "    return np.concatenate([dp_meas - dp_check, dtheta])", "position part",
+    _res(RES_RET, "    return np.concatenate([dp_meas - dp_camera, dtheta])", "position part",
          "sign of the position part"),
     _res(RES_RET, "    return np.zeros(6)", "nothing was compared", "zero residual"),
-    _res(RES_RET, "    dp_meas -= dp_check  # in place\n    return np.concatenate([-dp_meas, dtheta])", "in place",
+    _res(RES_RET, "    dp_meas -= dp_camera  # in place\n    return np.concatenate([-dp_meas, dtheta])", "in place",
          "the prediction subtracted into the caller's measured Δp"),
-    _res(RES_RET, "    return np.concatenate([dtheta, dp_check - dp_meas])", "order", "[θ; p]"),
+    _res(RES_RET, "    return np.concatenate([dtheta, dp_camera - dp_meas])", "order", "[θ; p]"),
+    _res(RES_RET, "    return np.concatenate([dp_check - dp_meas, dtheta])", "lever arm is ignored",
+         "the IMU's predicted displacement against the camera's measured one"),
     _res(RES_CALL, "    dp_check, dR_check = relative_motion(p_check, R_check, p_clone, R_clone)\n",
          "current pose to the clone", "the increment predicted backwards"),
     _res(RES_CALL, "    dp_check, dR_check = p_check - p_clone, R_clone.T @ R_check\n", "navigation frame",
          "the displacement predicted in the navigation frame"),
     _res("def relative_pose_residual(", BROKEN_REL + "def relative_pose_residual(", "fix relative_motion first",
          "through the learner's own relative_motion, which is wrong (dependency)"),
+    _res("lever_arm=np.zeros(3)):\n    # Clone", "):\n    lever_arm = np.zeros(3)\n    # Clone", "lever arm too",
+         "the lever arm dropped from the signature (fixed at zero)"),
 
-    # ---- relative_pose_jacobian: the clone's columns
-    _jac(JAC_BODY, "    pass\n", "treated as exactly known", "the clone's columns left empty (the stub)"),
+    # ---- relative_pose_jacobian: the clone's columns and the lever arm's
+    _jac(JAC_BODY, "    pass\n", "treated as exactly known", "the blocks left empty (the stub)"),
     _jac(G_PC, "    G[0:3, 15:18] = R_clone.T\n", "minus", "+Ř_cᵀ for δp_c"),
     _jac(G_PC, G_PC + "    G = G.astype(np.float32)\n", "single precision", "G returned in float32"),
     _jac(G_PC, "    G[0:3, 15:18] = -np.eye(3)\n", "rotated like the current one", "−I for δp_c"),
     _jac(G_PC, "    G[0:3, 15:18] = -R_clone\n", "R_c = R_nb", "−Ř_c for δp_c"),
     _jac(G_PC, "", "missing", "δp_c block left zero"),
-    _jac(G_LEVER, "    G[0:3, 18:21] = -so3.hat(dp_check)\n", "sign of the lever arm", "−[Δp̌]×"),
-    _jac(G_LEVER, "", "lever arm", "the lever arm left out"),
-    _jac(G_LEVER, "    G[0:3, 18:21] = so3.hat(R_clone @ dp_check)\n", "BODY frame",
+    _jac(G_LEVER, "    G[0:3, 18:21] = -so3.hat(dp_check + dR_check @ lever_arm)\n", "sign of the lever arm",
+         "−[Δp̌ + ΔŘ t]×"),
+    _jac(G_LEVER, "", "lever arm", "the clone's lever-arm block left out"),
+    _jac(G_LEVER, "    G[0:3, 18:21] = so3.hat(R_clone @ (dp_check + dR_check @ lever_arm))\n", "BODY frame",
          "the lever arm in the navigation frame"),
+    _jac(G_SWING + G_PC + G_LEVER, G_PC + "    G[0:3, 18:21] = so3.hat(dp_check)\n", "swings the camera",
+         "the lecture's blocks for t = 0, the lever arm ignored"),
+    _jac(G_LEVER, "    G[0:3, 18:21] = so3.hat(dp_check)\n", "the current CAMERA",
+         "[Δp̌]× for the clone's attitude, the camera ignored there"),
+    _jac(G_LEVER, "    G[0:3, 18:21] = so3.hat(dp_check + dR_check @ lever_arm - lever_arm)\n", "does not move",
+         "[Δp̌_camera]×: the camera's displacement as the lever arm"),
+    _jac(G_LEVER, "    G[0:3, 18:21] = so3.hat(dp_check + lever_arm)\n", "CURRENT body frame", "[Δp̌ + t]×"),
+    _jac(G_SWING, "", "swings the camera", "the current attitude's lever-arm block left out"),
+    _jac(G_SWING, "    G[0:3, 6:9] = dR_check @ so3.hat(lever_arm)\n", "sign of the lever arm's block", "+ΔŘ[t]×"),
+    _jac(G_SWING, "    G[0:3, 6:9] = -so3.hat(lever_arm)\n", "turned across the increment", "−[t]×"),
+    _jac(G_SWING, "    G[0:3, 6:9] = -so3.hat(dR_check @ lever_arm)\n", "order", "−[ΔŘ t]×"),
+    _jac(G_SWING, "    G[0:3, 6:9] = -R_clone.T @ so3.hat(lever_arm)\n", "not by Ř_cᵀ alone", "−Ř_cᵀ[t]×"),
     _jac(G_THC, "    G[3:6, 18:21] = -np.eye(3)\n", "rotate it across", "−I for δθ_c"),
     _jac(G_THC, "    G[3:6, 18:21] = -dR_check\n", "transpose", "−ΔŘ for δθ_c"),
     _jac(G_THC, "    G[3:6, 18:21] = dR_check.T\n", "sign", "+ΔŘᵀ for δθ_c"),
@@ -226,8 +281,10 @@ MUTANTS = [
     _jac(G_NEW + "    G[0:3, 0:3] = R_clone.T        # y_p with respect to the current position error\n"
          "    G[3:6, 6:9] = np.eye(3)        # y_theta with respect to the current attitude error\n"
          "    # BEGIN SOLUTION relative_pose_jacobian\n" + JAC_BODY,
-         "    G = np.zeros((6, 15))\n    G[0:3, 0:3] = R_clone.T\n    G[3:6, 6:9] = np.eye(3)\n", "(6, 15)",
-         "the 15-state G, no clone columns"),
+         "    G = np.zeros((6, 15))\n    G[0:3, 0:3] = R_clone.T\n    G[3:6, 6:9] = np.eye(3)\n"
+         "    G[0:3, 6:9] = -dR_check @ so3.hat(lever_arm)\n", "(6, 15)", "the 15-state G, no clone columns"),
+    _jac("lever_arm=np.zeros(3)):\n    # R_clone", "):\n    lever_arm = np.zeros(3)\n    # R_clone", "lever arm too",
+         "the lever arm dropped from the signature (fixed at zero)"),
 
     # ---- drift_segments: 100 |Δp_true − Δp| / L (%), angle(ΔRᵀ ΔR_true) / L (°/100 m)
     _drift(DRIFT_BODY, "        t_err[s] = np.linalg.norm(position[j] - true_position[j])\n"
@@ -295,11 +352,19 @@ EQUIVALENTS = [
     Edit("gauss_markov_blocks", Q_E, "    Q_e = np.eye(6) * sigma**2 * (1 - phi * phi)\n",
          mistake="a broadcast identity"),
     Edit("augmented_matrices", AUG_BODY,
-         "    from scipy.linalg import block_diag\n" + GM_CALL
-         + "    F_aug = block_diag(F, F_e)\n    Q_aug = block_diag(BQBt, Q_e)\n", mistake="scipy's block_diag"),
+         "    from scipy.linalg import block_diag\n    F_e = np.diag(np.exp(-T / tau))\n"
+         "    F_aug = block_diag(F, F_e)\n    Q_aug = block_diag(BQBt, Sigma - F_e @ Sigma @ F_e.T)\n",
+         mistake="scipy's block_diag, Q_e = Σ − F_e Σ F_eᵀ"),
     Edit("augmented_matrices", AUG_BODY,
-         GM_CALL + "    Z = np.zeros((15, 6))\n    F_aug = np.block([[F, Z], [Z.T, F_e]])\n"
-         "    Q_aug = np.block([[BQBt, Z], [Z.T, Q_e]])\n", mistake="np.block"),
+         A_PHI + "    F_e, Q_e = np.diag(phi), Sigma * (1.0 - np.outer(phi, phi))\n"
+         "    Z = np.zeros((15, 6))\n    F_aug = np.block([[F, Z], [Z.T, F_e]])\n"
+         "    Q_aug = np.block([[BQBt, Z], [Z.T, Q_e]])\n", mistake="np.block, Σ ∘ (1 − φ φᵀ)"),
+    Edit("augmented_matrices", Q_ERR,
+         "    rate = 1.0 / tau\n    Q_aug[15:, 15:] = -np.expm1(-T * (rate[:, None] + rate[None, :])) * Sigma\n",
+         mistake="1 − φ_i φ_j by expm1"),
+    Edit("augmented_matrices", A_PHI + "    F_aug = np.zeros((21, 21))\n" + F_NAV + F_ERR,
+         GM_PER_COMPONENT + "    phi = np.diag(F_e)\n    F_aug = np.zeros((21, 21))\n" + F_NAV
+         + "    F_aug[15:, 15:] = F_e\n", mistake="F_e from the learner's own gauss_markov_blocks (vector τ)"),
     Edit("relative_motion", DP, "    dp = (p1 - p0) @ R0\n", mistake="row vector times R0"),
     Edit("relative_motion", DP, "    dp = np.linalg.solve(R0, p1 - p0)\n", mistake="R0⁻¹ by solve"),
     Edit("relative_motion", DR, "    dR = np.linalg.inv(R0) @ R1\n", mistake="R0⁻¹ by inv"),
@@ -310,11 +375,16 @@ EQUIVALENTS = [
          "E[1, 0] - E[0, 1]])\n", mistake="the first-order vee of the antisymmetric part (lecture 08's form)"),
     Edit("relative_pose_residual", THETA, "    dtheta = so3.vee(dR_meas.T @ dR_check - np.eye(3))\n",
          mistake="the first-order (ΔR_mᵀ ΔŘ − I)^∨"),
-    Edit("relative_pose_jacobian", G_LEVER, "    G[0:3, 18:21] = -so3.hat(dp_check).T\n", mistake="−[Δp̌]×ᵀ"),
+    Edit("relative_pose_jacobian", G_LEVER, "    G[0:3, 18:21] = -so3.hat(dp_check + dR_check @ lever_arm).T\n",
+         mistake="−[Δp̌ + ΔŘ t]×ᵀ"),
+    Edit("relative_pose_jacobian", G_LEVER, "    G[0:3, 18:21] = so3.hat(dp_check) + so3.hat(dR_check @ lever_arm)\n",
+         mistake="the hat of a sum as a sum of hats"),
+    Edit("relative_pose_jacobian", G_SWING, "    G[0:3, 6:9] = -so3.hat(dR_check @ lever_arm) @ dR_check\n",
+         mistake="−[ΔŘ t]× ΔŘ = −ΔŘ [t]×"),
     Edit("relative_pose_jacobian", G_THC, "    G[3:6, 18:21] = -np.linalg.inv(dR_check)\n", mistake="−ΔŘ⁻¹"),
     Edit("relative_pose_jacobian", G_PC + G_LEVER,
-         "    G[0:3, 15:21] = np.hstack([-R_clone.T, np.cross(np.eye(3), dp_check)])\n",
-         mistake="the two y_p blocks at once, the lever arm by cross products (e_i × Δp̌ = −Δp̌ × e_i)"),
+         "    G[0:3, 15:21] = np.hstack([-R_clone.T, np.cross(np.eye(3), dp_check + dR_check @ lever_arm)])\n",
+         mistake="the two y_p blocks at once, the lever arm by cross products (e_i × q = −q × e_i)"),
     Edit("drift_segments", D_R, "        r_err[s] = np.degrees(np.linalg.norm(so3.Log(dR_true @ dR.T))) * 100.0 / L\n",
          mistake="ΔR_true ΔRᵀ (the same angle), np.degrees"),
     Edit("drift_segments", D_R, "        r_err[s] = np.degrees(np.arccos(np.clip((np.trace(dR.T @ dR_true) - 1.0) / 2.0, "
