@@ -553,8 +553,9 @@ def _class(targets: dict) -> dict[str, tuple[str, bytes]]:
         _, nb = notebooks.setdefault(attack.submission, (attack.notebook, _exercise(attack.notebook)))
         _apply(nb, attack, targets)
     out = {learner: (name, nbformat.writes(nb).encode()) for learner, (name, nb) in notebooks.items()}
-    # the honest classmates hand in the solutions' code (without the region markers, which
-    # flag a copy of solutions/)
+    # the honest classmates hand in the solutions' code in their own words: without the region
+    # markers, and with a comment of their own on each line they wrote (a copy, character for
+    # character, of a chapter with many solution lines is flagged: tests/test_copied.py)
     out[CLASSMATE_01] = (CH01, _solved(CH01))
     out[CLASSMATE_03] = (CH03, _solved(CH03))
     return out
@@ -563,8 +564,17 @@ def _class(targets: dict) -> dict[str, tuple[str, bytes]]:
 def _solved(notebook: str) -> bytes:
     nb = nbformat.read(ROOT / "solutions" / notebook, as_version=4)
     for cell in nb.cells:
-        cell.source = "\n".join(line for line in cell.source.splitlines()
-                                if not any(r.match(line) for r in (BEGIN_RE, STUB_RE, END_RE)))
+        lines, in_solution = [], False
+        for line in cell.source.splitlines():
+            if BEGIN_RE.match(line) or STUB_RE.match(line):
+                in_solution = bool(BEGIN_RE.match(line))
+            elif END_RE.match(line):
+                in_solution = False
+            elif in_solution and line.strip() and not line.rstrip().endswith("\\"):
+                lines.append(f"{line}  # my own line")
+            elif not in_solution or line.strip():
+                lines.append(line)
+        cell.source = "\n".join(lines)
     return nbformat.writes(nb).encode()
 
 

@@ -5,8 +5,10 @@ case of every check is square (n = m) with a non-symmetric Σ_xy or G, so a tran
 gives a wrong value instead of a shape error; the others have n ≠ m (both n > m and n < m),
 where a transpose changes the shape; covariances are full (non-diagonal) and anisotropic
 (scales from 0.1 to 30), so that a variance and a standard deviation, a matrix and its
-diagonal, or R and R R are different numbers. Reference and wrong values are computed once
-per process (``functools.cache``).
+diagonal, or R and R R are different numbers. The linear map's noise is correlated with x
+(a dense cross-covariance Σ_xn, so that G Σ_xn is not symmetric): leaving out a cross term, or
+the independent-noise formulas of lecture 02 §5, give other numbers. Reference and wrong values
+are computed once per process (``functools.cache``).
 
 Hints come in tiers (:mod:`kalman_course.checks.hints`): the concept, the mistake and the
 lecture section first (§3–§6 of lecture 02), the formula marked for tier 2.
@@ -20,11 +22,12 @@ than 1e-2 relative on some case.
 Under a graded run's seed (:mod:`kalman_course.checks.cases`) every family is drawn anew, in
 the same shapes and roles: the joint Gaussians (the square case's scales in 0.3–3.5, at least
 a factor 3 apart; the anisotropic case's from below 0.2 to above 15) and the observed y; the
-linear maps' Σ_xx, G and R (the square case's R = diag(σ²) with one σ in 0.1–0.5 and one in
-1.3–3); and the fused pairs (their spreads drawn around 1, 5 and 30). A drawn case is drawn
-again while cond(Σ_yy) exceeds 300 or a listed mistake comes within 1e-2 relative of the
-reference without being it (a mistake that is the reference by an identity, such as the
-variances of a 1-dimensional y, changes nothing).
+linear maps' Σ_xx, G, R and Σ_xn (the square case's R = diag(σ²) with one σ in 0.1–0.5 and one
+in 1.3–3; the correlation in :data:`CORRELATION_DRAWN`); and the fused pairs (their spreads
+drawn around 1, 5 and 30). A drawn case is drawn again while cond(Σ_yy) exceeds 300 or a
+listed mistake comes within 1e-2 relative of the reference without being it (a mistake that
+is the reference by an identity, such as the variances of a 1-dimensional y, changes
+nothing); the linear maps' fixed cases are held to the same rule.
 """
 
 from __future__ import annotations
@@ -44,8 +47,8 @@ from kalman_course.checks.harness import (CheckFailed, as_array, call, check, ex
 #: The formulas the hints point to, shown at hint tier 2 (:mod:`kalman_course.checks.hints`).
 CONDITIONAL_MEAN = hints.formula("μ_x|y = μ_x + Σ_xy Σ_yy⁻¹ (y − μ_y)")
 CONDITIONAL_COV = hints.formula("Σ_x|y = Σ_xx − Σ_xy Σ_yy⁻¹ Σ_yx")
-MAPPED_COV = hints.formula("Σ_yy = G Σ_xx Gᵀ + R")
-CROSS_COV = hints.formula("Σ_xy = Σ_xx Gᵀ")
+MAPPED_COV = hints.formula("Σ_yy = G Σ_xx Gᵀ + G Σ_xn + Σ_xnᵀ Gᵀ + R")
+CROSS_COV = hints.formula("Σ_xy = Σ_xx Gᵀ + Σ_xn")
 
 
 def _about(why: str, section: str, formula: str) -> str:
@@ -280,47 +283,143 @@ def check_conditional_covariance(gaussian_conditional):
 
 
 # ---------------------------------------------------------------------------------------
-# the linear map
+# the linear map, with a noise that is correlated with x
 # ---------------------------------------------------------------------------------------
 
 _LINEAR_SHAPE_HINT = ("with n ≠ m the shapes do not fit, so a matrix is transposed somewhere: G "
-                      "is (m, n), Σ_yy is (m, m), Σ_xy is (n, m) (lecture 02 §5): "
-                      + hints.formula("μ_y = G μ_x, Σ_yy = G Σ_xx Gᵀ + R, Σ_xy = Σ_xx Gᵀ"))
+                      "is (m, n), Σ_xn = E[(x − μ_x) nᵀ] is (n, m), Σ_yy is (m, m) and Σ_xy is (n, m) "
+                      "(lecture 02 §5): " + hints.formula("the cross terms of Σ_yy are G Σ_xn, of shape (m, m), "
+                                                          "and its transpose Σ_xnᵀ Gᵀ; Σ_xy = Σ_xx Gᵀ + Σ_xn"))
+
+#: How strongly the cases correlate x and the noise: Σ_xn = Σ_xx^½ K R^½ with the spectral norm
+#: of K equal to this (below 1, so that the covariance of [x; n] stays positive definite), and
+#: the range it is drawn from under a run seed.
+CORRELATION = 0.7
+CORRELATION_DRAWN = (0.5, 0.85)
+
+
+def linear_map_moments_reference(mu_x, Sigma_xx, G, R, Sigma_xn):
+    """Moments of y = G x + n when the noise n ~ N(0, R) is correlated with x.
+
+    Expanding the expectations as lecture 02 §5 does, but keeping the cross terms that the
+    independence of x and n removes there:
+
+    .. math::
+
+        \\mu_y = G\\mu_x, \\qquad
+        \\Sigma_{yy} = G\\Sigma_{xx}G^T + G\\Sigma_{xn} + \\Sigma_{xn}^T G^T + R, \\qquad
+        \\Sigma_{xy} = \\Sigma_{xx}G^T + \\Sigma_{xn}.
+
+    Parameters
+    ----------
+    mu_x : array_like, shape (n,)
+        Mean of x.
+    Sigma_xx : array_like, shape (n, n)
+        Covariance of x.
+    G : array_like, shape (m, n)
+        The linear map.
+    R : array_like, shape (m, m)
+        Covariance of the noise n (zero mean).
+    Sigma_xn : array_like, shape (n, m)
+        Cross-covariance E[(x − μ_x) nᵀ] of x and the noise.
+
+    Returns
+    -------
+    mu_y : ndarray, shape (m,)
+    Sigma_yy : ndarray, shape (m, m), symmetric
+    Sigma_xy : ndarray, shape (n, m)
+
+    Raises
+    ------
+    ValueError
+        If a shape does not match (``Sigma_xn`` named), or ``Sigma_xx`` or ``R`` is not a
+        covariance.
+    """
+    mu_y, Syy, Sxy = gaussians.linear_map(mu_x, Sigma_xx, G, R)
+    Sigma_xn = np.asarray(Sigma_xn, dtype=float)
+    if Sigma_xn.shape != Sxy.shape:
+        raise ValueError(f"Sigma_xn must have shape (n, m) = {Sxy.shape}, got {Sigma_xn.shape}")
+    cross = np.asarray(G, dtype=float) @ Sigma_xn                 # G Σ_xn, (m, m)
+    return mu_y, symmetrise(Syy + cross + cross.T), Sxy + Sigma_xn
 
 
 @functools.cache
 def _linear_cases():
     """Each case: (args, (mu_y, Syy, Sxy), mistakes for mu_y, Syy, Sxy). The first is square
     with a non-symmetric G and a diagonal, anisotropic R (noise σ = 0.2 and 1.5, so √R, R
-    and R R all differ); then n > m with full R, n > m with m = 1, and n < m.
+    and R R all differ); then n > m with full R, n > m with m = 1, and n < m. In every case
+    the noise is correlated with x (:data:`CORRELATION`) through a dense Σ_xn, so that G Σ_xn
+    is not symmetric and leaving out a cross term, or transposing one, changes Σ_yy.
 
     Under a run seed each is drawn from another stream, the square case's σ in 0.1–0.5 and
-    1.3–3 (in a drawn order), and drawn again while a mistake is a near miss."""
+    1.3–3 (in a drawn order) and the correlation from :data:`CORRELATION_DRAWN`; fixed or
+    drawn, a case is drawn again while a mistake is a near miss (:func:`_near_miss`)."""
     rng = inputs.rng("gaussians.linear", 21)
     out = []
     for n, m in ((2, 2), (3, 2), (4, 1), (2, 3)):
         while True:
-            square_sigmas = (0.2, 1.5)
+            square_sigmas, correlation = (0.2, 1.5), CORRELATION
             if inputs.drawing():
                 square_sigmas = rng.permutation([inputs.log_uniform(rng, 0.1, 0.5),
                                                  inputs.log_uniform(rng, 1.3, 3.0)])
-            case = _linear_case(rng, n, m, square_sigmas)
-            if not inputs.drawing() or (case is not None and _separated(zip(case[1], case[2]))):
+                correlation = float(rng.uniform(*CORRELATION_DRAWN))
+            case = _linear_case(rng, n, m, square_sigmas, correlation)
+            if case is not None and _separated(zip(case[1], case[2])):
                 break
         out.append(case)
     return out
 
 
-def _linear_case(rng: np.random.Generator, n: int, m: int, square_sigmas):
+def _noise_mistakes(GSG, R, cross_terms, m: int):
+    """The wrong ways to add the noise's covariance R to G Σ_xx Gᵀ (with the cross terms
+    ``cross_terms`` right), each with its hint."""
+    full = GSG + cross_terms
+    out = [
+        (full, _about("R is missing: the observation noise adds its covariance", "5", MAPPED_COV)),
+        (full + R @ R, "R is already a covariance (variances): add R, not R R (do not square "
+                       "it; lecture 02 §5)"),
+        (full + _sqrtm(R), "R holds variances: add R, not its square root (a standard "
+                           "deviation; lecture 02 §5)"),
+        (full + np.linalg.inv(R), "add the noise covariance R itself, not R⁻¹ (lecture 02 §5)"),
+        (full - R, "sign: the noise adds its covariance, + R (lecture 02 §5)"),
+        (R, "Σ_yy is only the noise: the uncertainty of x, carried through the map G, adds "
+            "to it, and so do the cross terms of the correlation (lecture 02 §5)"),
+        (R + cross_terms, "Σ_yy is only the noise and the cross terms: the uncertainty of x, "
+                          "carried through the map G, adds to them (lecture 02 §5)"),
+    ]
+    if not np.allclose(R, np.diag(np.diag(R))):
+        out += [
+            (full + np.diag(np.diag(R)), "only the diagonal of R was added: the noise "
+                                         "components are correlated, add the whole R"),
+            (full + R ** 2, "R is already a covariance (variances): add R, do not square it"),
+        ]
+    if not np.allclose(R, np.eye(m)):
+        out.append((full + np.eye(m), "the noise covariance is R, not the identity"))
+    with np.errstate(invalid="ignore"):
+        root = np.sqrt(R)                                    # element-wise: NaN off-diagonal < 0
+    if np.all(np.isfinite(root)):
+        out.append((full + root, "R holds variances: add R, not its element-wise square root "
+                                 "(a standard deviation)"))
+    return out
+
+
+def _correlated(expectation: str) -> str:
+    """What a hint for the formulas of an independent noise says: expand ``expectation``."""
+    return (f"here the noise is correlated with x (Σ_xn ≠ 0): expand {expectation} as §5 does and keep "
+            "the terms that independence made zero there")
+
+
+def _linear_case(rng: np.random.Generator, n: int, m: int, square_sigmas, correlation: float):
     """One case of :func:`_linear_cases`, drawn from ``rng``; ``square_sigmas`` are the noise
-    standard deviations of the square case's diagonal R. None under a run seed when the drawn
-    Σ_xx is not well inside the positive definite matrices."""
+    standard deviations of the square case's diagonal R, ``correlation`` the spectral norm of
+    the K in Σ_xn = Σ_xx^½ K R^½. None when the drawn Σ_xx is not well inside the positive
+    definite matrices (it is drawn again)."""
     A = rng.normal(size=(n, n))
     Sxx = np.diag(rng.uniform(0.3, 3.0, n)) @ (A @ A.T + 0.3 * np.eye(n)) @ \
         np.diag(rng.uniform(0.3, 3.0, n))
     Sxx = symmetrise(Sxx)
     eigenvalues = np.linalg.eigvalsh(Sxx)
-    if inputs.drawing() and eigenvalues[0] < 1e-3 * eigenvalues[-1]:
+    if eigenvalues[0] < 1e-3 * eigenvalues[-1]:
         return None     # the two scalings of A Aᵀ + 0.3 I can make it indefinite: draw again
     mu_x = rng.normal(size=n)
     G = rng.normal(size=(m, n))
@@ -329,61 +428,88 @@ def _linear_case(rng: np.random.Generator, n: int, m: int, square_sigmas):
     else:
         B = rng.normal(size=(m, m)) * rng.uniform(0.2, 2.0, m)[:, None]
         R = B @ B.T + 0.2 * np.eye(m)
-    mu_y, Syy, Sxy = gaussians.linear_map(mu_x, Sxx, G, R)
+    K = rng.normal(size=(n, m))
+    Sxn = _sqrtm(Sxx) @ (correlation / np.linalg.norm(K, 2) * K) @ _sqrtm(R)
+    mu_y, Syy, Sxy = linear_map_moments_reference(mu_x, Sxx, G, R, Sxn)
     GSG = G @ Sxx @ G.T
-    syy_mistakes = [
-        (GSG, _about("R is missing: the observation noise adds its covariance", "5", MAPPED_COV)),
-        (GSG + R @ R, "R is already a covariance (variances): add R, not R R (do not square "
-                      "it; lecture 02 §5)"),
-        (GSG + _sqrtm(R), "R holds variances: add R, not its square root (a standard "
-                          "deviation; lecture 02 §5)"),
-        (GSG + np.linalg.inv(R), "add the noise covariance R itself, not R⁻¹ (lecture 02 §5)"),
-        (GSG - R, "sign: independent noise adds its covariance, + R (lecture 02 §5)"),
-        (R, "Σ_yy is only the noise: the uncertainty of x, carried through the map G, adds "
-            "to it (lecture 02 §5)"),
+    cross = G @ Sxn                                           # G Σ_xn, (m, m), not symmetric
+    cross_terms = cross + cross.T
+    syy_mistakes = _noise_mistakes(GSG, R, cross_terms, m) + [
+        (GSG + R, _about(_correlated("E[(y − μ_y)(y − μ_y)ᵀ]") + "; you added the noise as if it were "
+                         "independent of x", "5",
+                         MAPPED_COV)),
+        (GSG, _about("R is missing, and so are the cross terms of the noise's correlation with x: the "
+                     "noise adds both", "5", MAPPED_COV)),
+        (GSG + cross + R, _about("only one of the two cross terms: E[G (x − μ_x) nᵀ] and its "
+                                 "transpose E[n (x − μ_x)ᵀ Gᵀ] are both in the expansion", "5", MAPPED_COV)),
+        (GSG + cross.T + R, _about("only one of the two cross terms: E[n (x − μ_x)ᵀ Gᵀ] and its "
+                                   "transpose E[G (x − μ_x) nᵀ] are both in the expansion", "5", MAPPED_COV)),
+        (GSG + 0.5 * cross_terms + R,
+         _about("half of the cross terms: one of the two was left out and the symmetrisation halved the "
+                "other; both are in the expansion", "5", MAPPED_COV)),
+        (GSG + 2.0 * cross + R, _about("the two cross terms are transposes of each other, not equal: "
+                                       "G Σ_xn is not symmetric", "5", MAPPED_COV)),
+        (GSG + 2.0 * cross.T + R, _about("the two cross terms are transposes of each other, not equal: "
+                                         "Σ_xnᵀ Gᵀ is not symmetric", "5", MAPPED_COV)),
+        (GSG - cross_terms + R, _about("sign: the cross terms come from expanding a product of sums, each "
+                                       "with a plus", "5", MAPPED_COV)),
+        (GSG + 2.0 * cross_terms + R, _about("the cross terms were counted twice: each of the two appears "
+                                             "once in the expansion", "5", MAPPED_COV)),
     ]
-    if not np.allclose(R, np.diag(np.diag(R))):
-        syy_mistakes += [
-            (GSG + np.diag(np.diag(R)), "only the diagonal of R was added: the noise "
-                                        "components are correlated, add the whole R"),
-            (GSG + R ** 2, "R is already a covariance (variances): add R, do not square it"),
-        ]
-    if not np.allclose(R, np.eye(m)):
-        syy_mistakes.append((GSG + np.eye(m), "the noise covariance is R, not the identity"))
-    with np.errstate(invalid="ignore"):
-        root = np.sqrt(R)                                    # element-wise: NaN off-diagonal < 0
-    if np.all(np.isfinite(root)):
-        syy_mistakes.append((GSG + root, "R holds variances: add R, not its element-wise "
-                                         "square root (a standard deviation)"))
     sxy_mistakes = [
-        (Sxx, _about("the map G must appear in Σ_xy", "5", CROSS_COV)),
-        (Sxx @ G.T @ np.linalg.inv(Syy), _about("that is the gain Σ_xy Σ_yy⁻¹ of the next chapter, not "
-                                                "the cross-covariance", "5", CROSS_COV)),
+        (Sxx @ G.T, _about(_correlated("E[(x − μ_x)(y − μ_y)ᵀ]") + ": E[(x − μ_x) nᵀ] = Σ_xn is not "
+                           "zero", "5", CROSS_COV)),
+        (Sxx @ G.T - Sxn, _about("sign: Σ_xy adds E[(x − μ_x) nᵀ] = Σ_xn", "5", CROSS_COV)),
+        (Sxx, _about("the map G must appear in Σ_xy, and so must the correlation of x and the noise", "5",
+                     CROSS_COV)),
+        ((Sxx @ G.T + Sxn) @ np.linalg.inv(Syy), _about("that is the gain Σ_xy Σ_yy⁻¹ of the next chapter, "
+                                                       "not the cross-covariance", "5", CROSS_COV)),
+        (Sxx @ G.T + 2.0 * Sxn, _about("Σ_xn counted twice in Σ_xy: (x − μ_x)(y − μ_y)ᵀ has one term in "
+                                       "(x − μ_x) nᵀ", "5", CROSS_COV)),
     ]
     mu_mistakes = []
     if n == m:
+        swapped = G @ Sxn.T                                   # the Σ_xn transposed
         syy_mistakes += [
-            (G.T @ Sxx @ G + R, _about("G and Gᵀ are swapped (transposed)", "5", MAPPED_COV)),
-            (G @ Sxx @ G + R, _about("the transpose of the last G is missing", "5", MAPPED_COV)),
-            (GSG + G @ R @ G.T, "the noise was pushed through the map: in y = G x + n the "
-                                "noise is added after the map, in the measurement's own "
-                                "axes and units (R is m × m), so R is added as it is, "
-                                "not as G R Gᵀ"),
-            (Sxx + R, _about("the map G must appear in Σ_yy", "5", MAPPED_COV)),
+            (G.T @ Sxx @ G + cross_terms + R, _about("G and Gᵀ are swapped (transposed)", "5", MAPPED_COV)),
+            (G @ Sxx @ G + cross_terms + R, _about("the transpose of the last G is missing", "5", MAPPED_COV)),
+            (GSG + G @ R @ G.T + cross_terms,
+             "the noise was pushed through the map: in y = G x + n the noise is added after the "
+             "map, in the measurement's own axes and units (R is m × m), so R is added as it is, "
+             "not as G R Gᵀ"),
+            (Sxx + Sxn + Sxn.T + R, _about("the map G must appear in Σ_yy, also in its cross terms", "5",
+                                           MAPPED_COV)),
+            (GSG + swapped + swapped.T + R,
+             _about("Σ_xn is transposed in the cross terms: Σ_xn = E[(x − μ_x) nᵀ] has shape (n, m), so "
+                    "E[G (x − μ_x) nᵀ] = G Σ_xn", "5", MAPPED_COV)),
+            (GSG + G.T @ Sxn + Sxn.T @ G + R,
+             _about("Gᵀ stands where G belongs in the cross terms: y − μ_y = G (x − μ_x) + n", "5",
+                    MAPPED_COV)),
+            (GSG + Sxn + Sxn.T + R,
+             _about("the map is missing from the cross terms: x enters y only through G", "5", MAPPED_COV)),
         ]
         sxy_mistakes += [
-            (G @ Sxx, "that is Σ_yx = G Σ_xx, the transpose of Σ_xy: Σ_xy = "
-                      "E[(x − μ_x)(y − μ_y)ᵀ] has one row per component of x and one column "
-                      "per component of y, shape (n, m)"),
-            (G.T @ Sxx, _about("Σ_xx comes first (Gᵀ Σ_xx is another matrix)", "5", CROSS_COV)),
-            (Sxx @ G.T + R, _about("the noise is independent of x: it adds nothing to Σ_xy", "5",
-                                   CROSS_COV)),
+            (G @ Sxx + Sxn.T, "that is Σ_yx = G Σ_xx + Σ_xnᵀ, the transpose of Σ_xy: Σ_xy = "
+                              "E[(x − μ_x)(y − μ_y)ᵀ] has one row per component of x and one "
+                              "column per component of y, shape (n, m)"),
+            (G @ Sxx + Sxn, "G Σ_xx is Σ_yx's first term, the transpose of Σ_xx Gᵀ: Σ_xy = "
+                            "E[(x − μ_x)(y − μ_y)ᵀ] has one row per component of x, shape (n, m)"),
+            (Sxx + Sxn, _about("the map G must appear in Σ_xy", "5", CROSS_COV)),
+            (G.T @ Sxx + Sxn, _about("Σ_xx comes first (Gᵀ Σ_xx is another matrix)", "5", CROSS_COV)),
+            (Sxx @ G.T + Sxn.T, _about("Σ_xn is transposed: Σ_xy takes E[(x − μ_x) nᵀ] = Σ_xn, shape (n, m), "
+                                       "not Σ_nx = Σ_xnᵀ", "5", CROSS_COV)),
+            (Sxx @ G.T + Sxn + R, _about("R is the noise's own covariance: it is no part of Σ_xy", "5",
+                                         CROSS_COV)),
+            (Sxx @ G.T + G @ Sxn, _about("the noise is added after the map: E[(x − μ_x) nᵀ] is Σ_xn itself, "
+                                         "G does not multiply it", "5", CROSS_COV)),
+            (Sxx @ G.T + Sxn @ G.T, _about("the noise is added after the map: E[(x − μ_x) nᵀ] is Σ_xn itself, "
+                                           "Gᵀ does not multiply it", "5", CROSS_COV)),
         ]
         mu_mistakes += [
             (mu_x, _about("the mean goes through the map", "5", hints.formula("μ_y = G μ_x"))),
             (G.T @ mu_x, _about("G is transposed", "5", hints.formula("μ_y = G μ_x"))),
         ]
-    return (mu_x, Sxx, G, R), (mu_y, Syy, Sxy), (mu_mistakes, syy_mistakes, sxy_mistakes)
+    return (mu_x, Sxx, G, R, Sxn), (mu_y, Syy, Sxy), (mu_mistakes, syy_mistakes, sxy_mistakes)
 
 
 def _close(a, b) -> bool:
@@ -398,21 +524,27 @@ def _close(a, b) -> bool:
 
 @check
 def check_linear_map_moments(linear_map_moments):
-    """The learner's ``linear_map_moments(mu_x, Sigma_xx, G, R)`` returns (mu_y, Sigma_yy, Sigma_xy)."""
+    """The learner's ``linear_map_moments(mu_x, Sigma_xx, G, R, Sigma_xn)`` returns (mu_y, Sigma_yy,
+    Sigma_xy) of y = G x + n, for a noise n correlated with x (cross-covariance Σ_xn)."""
     for args, (mu_y, Syy, Sxy), (mu_mistakes, syy_mistakes, sxy_mistakes) in _linear_cases():
         n, m = Sxy.shape
         sizes = f"n = {n}, m = {m}"
         try:
             result = call(linear_map_moments, *args)
         except CheckFailed as exc:
+            if "positional argument" in str(exc):
+                raise CheckFailed(f"{exc}. Hint: linear_map_moments takes five arguments, (mu_x, Sigma_xx, "
+                                  "G, R, Sigma_xn): the last is the cross-covariance E[(x − μ_x) nᵀ] of x "
+                                  "and the noise, shape (n, m)") from None
             raise _shape_hint(exc, sizes, _LINEAR_SHAPE_HINT) from None
         got_mu, got_syy, got_sxy = _tuple(result, 3, "(mu_y, Sigma_yy, Sigma_xy)", "linear_map_moments")
         mu_x, Sxx = args[0], args[1]
         if _close(got_mu, mu_x) and _close(got_syy, Sxx):     # the exercise's placeholder
             raise CheckFailed(f"you returned the moments of x itself ({sizes}), as if the sensor read "
                               "x directly and without noise: y = G x + n has m components; push the "
-                              "mean and the covariance of x through the map G, add the covariance "
-                              "of the noise, and give the cross-covariance of x and y (lecture 02 §5)")
+                              "mean and the covariance of x through the map G, add what the noise and "
+                              "its correlation with x bring, and give the cross-covariance of x and y "
+                              "(lecture 02 §5)")
         try:
             if _close(got_syy, Sxy) and _close(got_sxy, Syy):
                 raise CheckFailed("Sigma_yy and Sigma_xy are swapped: the order is "
@@ -421,17 +553,19 @@ def check_linear_map_moments(linear_map_moments):
             pass
         expect_close(got_mu, mu_y, f"mu_y ({sizes})", mistakes=mu_mistakes,
                      hint=_about("the noise has zero mean, so the mean of y is the mean of x carried "
-                                 "through the map", "5", hints.formula("μ_y = G μ_x")))
+                                 "through the map (the correlation changes no mean)", "5",
+                                 hints.formula("μ_y = G μ_x")))
         expect_close(got_syy, Syy, f"Sigma_yy ({sizes})", mistakes=syy_mistakes,
                      hint=_about("Σ_yy is the covariance of x carried through the map G, plus the "
-                                 "noise's", "5", MAPPED_COV))
+                                 "noise's, plus the two cross terms of their correlation", "5", MAPPED_COV))
         arr = as_array(got_sxy, f"Sigma_xy ({sizes})")
         if n != m and arr.shape == (m, n):
-            raise CheckFailed(f"Sigma_xy ({sizes}) has shape {arr.shape}: that is Σ_yx = G Σ_xx, "
+            raise CheckFailed(f"Sigma_xy ({sizes}) has shape {arr.shape}: that is Σ_yx = G Σ_xx + Σ_xnᵀ, "
                               f"its transpose; Σ_xy has shape (n, m) = ({n}, {m}) (lecture 02 §5): "
                               + CROSS_COV)
         expect_close(arr, Sxy, f"Sigma_xy ({sizes})", mistakes=sxy_mistakes,
-                     hint=_about("Σ_xy is the cross-covariance of x and y, shape (n, m)", "5", CROSS_COV))
+                     hint=_about("Σ_xy = E[(x − μ_x)(y − μ_y)ᵀ] is the cross-covariance of x and y, shape "
+                                 "(n, m); expand it as Σ_yy", "5", CROSS_COV))
 
 
 # ---------------------------------------------------------------------------------------

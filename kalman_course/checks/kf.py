@@ -20,7 +20,11 @@ by T² in size), so that a cut-off or special case for very short or very long s
 Hints come in tiers (:mod:`kalman_course.checks.hints`): the first names the concept, the
 mistake where one is known and the lecture section; the formula is marked and shown at tier 2.
 Which listed mistake explains a learner's whole run is asked of :func:`harness.known_mistake`
-over every case of the run checks.
+over every case of the run checks. Row 0 of the whole run, the belief at t[0], is the learner's
+decision from what the first fix tells and what it does not (the exercise gives no matrix):
+:func:`_initial_state_hint` names each wrong decision (a velocity variance near zero, σ for
+σ², a zero or a discarded position variance, coupled blocks, a start velocity from the second
+fix or of some direction).
 
 Tolerances: the checks compare with ``expect_close``'s default rtol 1e-7 / atol 1e-9
 unless a comment says otherwise. Every correct way to write the step functions (inverse
@@ -857,39 +861,114 @@ def _run_mistake(index: int, j: int):
     return _gnss_kf_variant(t, y, sigma_a, sigma_gnss, **_RUN_MISTAKES[j][0](sigma_a, sigma_gnss))
 
 
-def _initial_state_hint(x0, P0, y0, sigma_gnss, sigma_v0=SIGMA_V0) -> str | None:
-    """A hint naming what is wrong in row 0 (the initial state), or None if it is right."""
+#: What every hint about row 0 ends with: what the belief at t[0] is made of (tier 1), and
+#: the row itself (tier 2).
+_ROW_ZERO = ("Row 0 is the belief at t[0] from the first fix alone: the fix gives the position, with "
+             "the error of every fix; it says nothing of the velocity, whose spread per axis is "
+             "sigma_v0")
+_ROW_ZERO_FORMULA = hints.formula("x₀ = [y[0], 0], P₀ = diag(σ_gnss² I, σ_v0² I)")
+
+
+def _variance_hint(got, var: float, sigma: float, what: str, fix_var: float) -> str | None:
+    """What is wrong with the diagonal ``got`` (3,) of the ``what`` ("position" or "velocity")
+    block of P₀, whose variance should be ``var`` = ``sigma``²: None if it is right, else the
+    decision that gives it. ``fix_var`` is one fix's variance σ_gnss² (a velocity block copied
+    from the position's is named)."""
+    if np.allclose(got, var, rtol=1e-9):
+        return None
+    if np.allclose(got, sigma, rtol=1e-9):
+        return (f"the initial {what} variance must be σ² = {var:g}, you used the standard deviation "
+                f"σ = {sigma:g}")
+    if np.allclose(got, var**2, rtol=1e-9):
+        return f"the initial {what} variance is σ⁴ = {var**2:g}: σ is squared twice"
+    shown = np.round(got, 6).tolist()
+    if what == "position":
+        if np.all(np.abs(got) <= 1e-6 * var):
+            return ("the initial position variance is zero, which claims the first fix is exact: it has "
+                    "the error of every fix, R")
+        if np.allclose(got, 1.0, rtol=1e-9):
+            return ("the initial position variance is 1 on each axis, as if σ_gnss were 1: the first fix "
+                    "has the error of every fix, R, with the sigma_gnss passed in")
+        if np.all(got >= 10.0 * var):
+            return (f"the initial position variance is {shown}: that throws away what the first fix tells, "
+                    "the position to within the error of one fix")
+    else:
+        if np.allclose(got, fix_var, rtol=1e-9):
+            return (f"the initial velocity variance is {shown}, the fix's own variance σ_gnss²: the fix says "
+                    "nothing of the velocity, not the fix's error; the velocity's spread is sigma_v0's")
+        if np.all(got < 0.1 * var):
+            spread = 3.0 * np.sqrt(np.clip(got, 0.0, None))
+            return (f"the initial velocity variance is {shown}, near zero for a car that moves: it claims the "
+                    f"velocity is known to within ±{np.max(spread):.3g} m/s (3σ), as if the filter knew the "
+                    "car's speed. The car is moving at t[0], at a speed and in a direction the filter does "
+                    "not know, and a P₀ that claims knowledge it does not have makes the filter "
+                    "overconfident at the start (lecture 03 §7)")
+    return f"the initial {what} variance is {shown}, expected σ² = {var:g}"
+
+
+def _initial_state_hint(x0, P0, y0, sigma_gnss, sigma_v0=SIGMA_V0, *, second=None) -> str | None:
+    """A hint naming the wrong decision in row 0 (the belief at t[0]), or None if it is right.
+
+    Parameters
+    ----------
+    x0 : ndarray, shape (6,)
+        The learner's row 0 of x_hat.
+    P0 : ndarray, shape (6, 6)
+        The learner's row 0 of P_hat.
+    y0 : ndarray, shape (3,)
+        The first fix (m).
+    sigma_gnss, sigma_v0 : float
+        The fix's noise (m) and the start velocity's spread (m/s), per axis.
+    second : tuple (float, ndarray (3,)), optional
+        The time step to the second fix and the second fix, to name a start velocity taken
+        from the two fixes.
+    """
     x_ref = np.r_[y0, np.zeros(3)]
     pos_var, vel_var = sigma_gnss**2, sigma_v0**2
     P_ref = np.diag(np.r_[np.full(3, pos_var), np.full(3, vel_var)])
     if np.allclose(x0, x_ref, rtol=1e-9, atol=1e-9) and np.allclose(P0, P_ref, rtol=1e-9, atol=1e-12):
         return None
+    if np.allclose(x0, 0.0, atol=1e-12) and np.allclose(P0, np.eye(6), atol=1e-12):
+        return _about("row 0 is still the exercise's placeholder (x = 0, P = I): decide the belief at t[0] "
+                      "from what the first fix tells and what it does not. " + _ROW_ZERO, "9", _ROW_ZERO_FORMULA)
     G = position_observation()
     updated = kf.kf_update(x_ref, P_ref, y0, G, pos_var * np.eye(3), joseph=True)
     if np.allclose(P0, updated.P_hat, rtol=1e-6, atol=1e-9):
         return _about("row 0 was updated with y[0], but the initial state already is that fix: it "
                       "counts twice. Row 0 is the initial state itself", "9", hints.formula("x₀ = [y[0], 0]"))
-    if not np.allclose(x0, x_ref, rtol=1e-9, atol=1e-9):
-        return _about("the initial state is the first fix, with zero velocity", "9",
-                      hints.formula("x₀ = [y[0], 0]"))
-    got_pos, got_vel = np.diag(P0)[:3], np.diag(P0)[3:]
     parts = []
-    for got, var, sigma, what in ((got_pos, pos_var, sigma_gnss, "position"),
-                                  (got_vel, vel_var, sigma_v0, "velocity")):
-        if np.allclose(got, var, rtol=1e-9):
-            continue
-        if np.allclose(got, sigma, rtol=1e-9):
-            parts.append(f"the initial {what} variance must be σ² = {var:g}, you used the standard "
-                         f"deviation σ = {sigma:g}")
+    position, velocity = np.asarray(x0[:3], dtype=float), np.asarray(x0[3:], dtype=float)
+    if not np.allclose(position, y0, rtol=1e-9, atol=1e-9):
+        parts.append("the belief starts at the origin: at t[0] the car is where the first fix says, to "
+                     "within the fix's error" if np.allclose(position, 0.0, atol=1e-9) else
+                     "the position of the belief at t[0] is the first fix itself: nothing else is known yet")
+    if not np.allclose(velocity, 0.0, atol=1e-9):
+        from_fixes = None
+        if second is not None and np.all(np.isfinite(second[1])) and second[0] > 0:
+            from_fixes = (np.asarray(second[1], dtype=float) - y0) / second[0]
+        if from_fixes is not None and np.allclose(velocity, from_fixes, rtol=1e-6, atol=1e-9):
+            parts.append("the start velocity was taken from the second fix: at t[0] only y[0] is known, and "
+                         "the update of step 1 uses y[1] again, which counts it twice")
         else:
-            parts.append(f"the initial {what} variance is {np.round(got, 6).tolist()}, expected "
-                         f"σ² = {var:g}")
-    off_diagonal = P0 - np.diag(np.diag(P0))
-    if np.any(np.abs(off_diagonal) > 1e-12):
-        parts.append("the initial covariance is diagonal")
-    return _about("; ".join(parts) + ". The initial covariance holds the variance of the first fix and "
-                  "that of the unknown start velocity", "9",
-                  hints.formula("P₀ = diag(σ_gnss² I, σ_v0² I)"))
+            parts.append("a start velocity other than zero claims a direction of travel that nothing has told "
+                         "the filter: with every direction as likely, the mean velocity is zero")
+    P0 = np.asarray(P0, dtype=float)
+    for block, var, sigma, what in ((slice(0, 3), pos_var, sigma_gnss, "position"),
+                                    (slice(3, 6), vel_var, sigma_v0, "velocity")):
+        wrong = _variance_hint(np.diag(P0)[block], var, sigma, what, pos_var)
+        if wrong is not None:
+            parts.append(wrong)
+    if np.any(np.abs(P0[:3, 3:]) > 1e-12) or np.any(np.abs(P0[3:, :3]) > 1e-12):
+        parts.append("P₀ couples the position and velocity errors, but the first fix tells nothing about "
+                     "the velocity: nothing links the two at t[0], so their blocks of P₀ are zero")
+    for block, what in ((slice(0, 3), "the fix's errors on the three axes are independent (R is diagonal)"),
+                        (slice(3, 6), "nothing links the three velocity components")):
+        inner = P0[block, block]
+        if np.any(np.abs(inner - np.diag(np.diag(inner))) > 1e-12):
+            parts.append(f"{what}: that block of P₀ is diagonal")
+    if not parts:           # row 0 differs below the rounding that the parts above resolve
+        parts.append("row 0 differs from the belief at t[0]")
+    return _about("; ".join(parts) + ". " + _ROW_ZERO, "9", _ROW_ZERO_FORMULA)
 
 
 def _same_run(x_hat, P_hat, x_ref, P_ref) -> bool:
@@ -932,7 +1011,7 @@ def _is_run(got, wrong) -> bool:
         _same_run(x_hat, P_hat, x_wrong, P_wrong)
 
 
-def _reject_known_run_mistakes(got: list, index: int, y, sigma_gnss, mistakes, run_of, where: str) -> None:
+def _reject_known_run_mistakes(got: list, index: int, t, y, sigma_gnss, mistakes, run_of, where: str) -> None:
     """Raise CheckFailed if run ``index``'s initial state is wrong or a listed mistake explains
     the learner's runs (:func:`harness.known_mistake`: on every case, else on this one); return
     if none does.
@@ -943,8 +1022,8 @@ def _reject_known_run_mistakes(got: list, index: int, y, sigma_gnss, mistakes, r
         The learner's results on every case of the check (:func:`_learner_runs`).
     index : int
         The case whose run is wrong (its shapes are checked).
-    y, sigma_gnss
-        That case's fixes and GNSS noise, for the initial state's hint.
+    t, y, sigma_gnss
+        That case's times, fixes and GNSS noise, for the initial state's hint.
     mistakes : sequence of str
         The hints of the listed mistakes, in order.
     run_of : callable
@@ -953,7 +1032,8 @@ def _reject_known_run_mistakes(got: list, index: int, y, sigma_gnss, mistakes, r
         The run, as the message names it.
     """
     x_hat, P_hat = (np.asarray(value, dtype=float) for value in got[index])
-    initial = _initial_state_hint(x_hat[0], P_hat[0], y[0], sigma_gnss)
+    initial = _initial_state_hint(x_hat[0], P_hat[0], y[0], sigma_gnss,
+                                  second=(t[1] - t[0], y[1]) if len(t) > 1 else None)
     if initial is not None:
         raise CheckFailed(f"row 0 of x_hat / P_hat on {where} is wrong. Hint: {initial}")
     why = known_mistake(got, range(len(got)), list(enumerate(mistakes)), lambda g, w, _: _is_run(g, w),
@@ -994,7 +1074,7 @@ def check_gnss_kf_run(run_gnss_kf):
         P_hat = expect_shape(P_res, P_ref.shape, "P_hat")
         if _same_run(x_hat, P_hat, x_ref, P_ref):
             continue
-        _reject_known_run_mistakes(results, index, y, sigma_gnss, [why for _, why in _RUN_MISTAKES],
+        _reject_known_run_mistakes(results, index, t, y, sigma_gnss, [why for _, why in _RUN_MISTAKES],
                                    _run_mistake, f"{excerpt} (σ_a = {sigma_a}, σ_gnss = {sigma_gnss})")
         truth = truth_at(name, t)
         # 3-D position RMSE = norm of the per-axis RMSEs (NaN in a learner's x_hat stays NaN)
@@ -1176,11 +1256,14 @@ def _gaps_mistake(index: int, j: int):
 
 
 @check(uses={"cv_matrices": "cv_process_noise", "kf_predict": "kf_predict", "kf_gain": "kf_gain",
-             "kf_update": "kf_update"})
+             "kf_update": "kf_update", "run_gnss_kf": "gnss_kf_run"})
 def check_gnss_kf_gaps(run_gnss_kf_gaps):
     """The learner's ``run_gnss_kf_gaps(t, y, sigma_a, sigma_gnss)``: the KITTI excerpts'
     fixes with a 4 s outage, single dropouts and the last fix missing (NaN rows); under a
     run seed, drawn ones in the same roles (:func:`_gaps_cases`).
+
+    The exercise's filter starts from row 0 of the learner's ``run_gnss_kf`` (the belief at
+    t[0] they decided there): a wrong one is named as ``run_gnss_kf``'s, to fix first.
 
     Tolerance as in :func:`check_gnss_kf_run` (rtol 1e-6; atol 1e-6 m for x, 1e-9 for P);
     the nearest mistake, the last fix's prior replaced by its stale posterior, differs by
@@ -1219,7 +1302,7 @@ def check_gnss_kf_gaps(run_gnss_kf_gaps):
         P_hat = expect_shape(P_res, P_ref.shape, "P_hat")
         if _same_run(x_hat, P_hat, x_ref, P_ref):
             continue
-        _reject_known_run_mistakes(results, index, y, sigma_gnss, [why for _, why in _GAP_MISTAKES],
+        _reject_known_run_mistakes(results, index, t, y, sigma_gnss, [why for _, why in _GAP_MISTAKES],
                                    _gaps_mistake, f"{excerpt} with missing fixes")
         wrong_rows = [k for k in range(N) if not _same_run(x_hat[k], P_hat[k], x_ref[k], P_ref[k])]
         first = wrong_rows[0]

@@ -1,7 +1,8 @@
 """Chapter 02 (Gaussians): plausible mistakes in the exercise's functions.
 
 The solution's cells: ``conditional`` (gaussian_conditional, graded by conditional_mean and
-conditional_covariance), ``linear`` (linear_map_moments, one fix region for the whole step)
+conditional_covariance), ``linear`` (linear_map_moments, one fix region for the whole step:
+the moments of y = G x + n for a noise correlated with x, derived by the learner)
 and ``challenge`` (gaussian_fusion, the optional challenge).
 """
 
@@ -12,8 +13,11 @@ NOTEBOOK = "02_gaussians"
 _MEAN = "mean = mu_x + Sigma_xy @ np.linalg.solve(Sigma_yy, y - mu_y)"
 _COV = "cov = Sigma_xx - Sigma_xy @ np.linalg.solve(Sigma_yy, Sigma_xy.T)"
 _RET = "return mean, 0.5 * (cov + cov.T)"
-_SYY = "Sigma_yy = G @ Sigma_xx @ G.T + R"
-_SXY = "Sigma_xy = Sigma_xx @ G.T"
+# the linear map, with a noise correlated with x (cross-covariance Sigma_xn)
+_CROSS = "G @ Sigma_xn + Sigma_xn.T @ G.T"
+_SYY = f"Sigma_yy = G @ Sigma_xx @ G.T + {_CROSS} + R"
+_SXY = "Sigma_xy = Sigma_xx @ G.T + Sigma_xn"
+_DEF = "def linear_map_moments(mu_x, Sigma_xx, G, R, Sigma_xn):"
 _MUY = "mu_y = G @ mu_x"
 _LRET = "return mu_y, Sigma_yy, Sigma_xy"
 # the linear map's fix region: the whole step
@@ -31,7 +35,7 @@ MUTANTS = [
     Edit("conditional_mean", _MEAN,
          "y -= mu_y\n    mean = mu_x + Sigma_xy @ np.linalg.solve(Sigma_yy, y)",
          keyword="in place", mistake="the mean of y subtracted into the caller's y"),
-    Edit("linear_map_moments", _SYY, "R += G @ Sigma_xx @ G.T\n    Sigma_yy = R",
+    Edit("linear_map_moments", _SYY, f"R += G @ Sigma_xx @ G.T + {_CROSS}\n    Sigma_yy = R",
          keyword="in place", mistake="the mapped covariance added into the caller's R"),
     Edit("linear_map_moments", _MUY, "mu_y = (G @ mu_x).astype(np.float32)",
          keyword="single precision", mistake="μ_y in float32"),
@@ -96,44 +100,89 @@ MUTANTS = [
     Edit("conditional_covariance", _RET, "return cov, mean",
          keyword="order", mistake="(cov, mean) returned"),
 
-    # --- linear_map_moments -------------------------------------------------------------
-    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T",
+    # --- linear_map_moments: y = G x + n with the noise correlated with x ----------------
+    # the noise's covariance R, added wrongly (the cross terms right)
+    Edit("linear_map_moments", _SYY, f"Sigma_yy = G @ Sigma_xx @ G.T + {_CROSS}",
          keyword="R is missing", mistake="R left out"),
-    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + R @ R",
+    Edit("linear_map_moments", _SYY, f"Sigma_yy = G @ Sigma_xx @ G.T + {_CROSS} + R @ R",
          keyword="not R R", mistake="R R instead of R"),
-    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + np.sqrt(R)",
+    Edit("linear_map_moments", _SYY, f"Sigma_yy = G @ Sigma_xx @ G.T + {_CROSS} + np.sqrt(R)",
          keyword="standard deviation", mistake="√R (element-wise) instead of R"),
     Edit("linear_map_moments", _SYY,
-         "w, V = np.linalg.eigh(R)\n    Sigma_yy = G @ Sigma_xx @ G.T + (V * np.sqrt(w)) @ V.T",
+         f"w, V = np.linalg.eigh(R)\n    Sigma_yy = G @ Sigma_xx @ G.T + {_CROSS} + (V * np.sqrt(w)) @ V.T",
          keyword="standard deviation", mistake="the matrix square root of R instead of R"),
-    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + np.linalg.inv(R)",
+    Edit("linear_map_moments", _SYY, f"Sigma_yy = G @ Sigma_xx @ G.T + {_CROSS} + np.linalg.inv(R)",
          keyword="R⁻¹", mistake="R⁻¹ instead of R"),
-    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T - R",
+    Edit("linear_map_moments", _SYY, f"Sigma_yy = G @ Sigma_xx @ G.T + {_CROSS} - R",
          keyword="sign", mistake="R subtracted"),
-    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + np.diag(np.diag(R))",
+    Edit("linear_map_moments", _SYY, f"Sigma_yy = G @ Sigma_xx @ G.T + {_CROSS} + np.diag(np.diag(R))",
          keyword="diagonal of R", mistake="only the noise variances (diagonal of R) added"),
-    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + R ** 2",
+    Edit("linear_map_moments", _SYY, f"Sigma_yy = G @ Sigma_xx @ G.T + {_CROSS} + R ** 2",
          keyword="do not square", mistake="R squared element-wise"),
-    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + np.eye(len(R))",
+    Edit("linear_map_moments", _SYY, f"Sigma_yy = G @ Sigma_xx @ G.T + {_CROSS} + np.eye(len(R))",
          keyword="identity", mistake="unit noise assumed (R = I)"),
-    Edit("linear_map_moments", _SYY, "Sigma_yy = G.T @ Sigma_xx @ G + R",
+    Edit("linear_map_moments", _SYY, f"Sigma_yy = G.T @ Sigma_xx @ G + {_CROSS} + R",
          keyword="transposed", mistake="Gᵀ Σ_xx G"),
-    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G + R",
+    Edit("linear_map_moments", _SYY, f"Sigma_yy = G @ Sigma_xx @ G + {_CROSS} + R",
          keyword="transpose", mistake="the last G not transposed"),
-    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + G @ R @ G.T",
+    Edit("linear_map_moments", _SYY, f"Sigma_yy = G @ Sigma_xx @ G.T + {_CROSS} + G @ R @ G.T",
          keyword="after the map", mistake="noise pushed through the map"),
-    Edit("linear_map_moments", _SYY, "Sigma_yy = Sigma_xx + R",
-         keyword="map G must appear", mistake="G left out of Σ_yy"),
-    Edit("linear_map_moments", _SXY, "Sigma_xy = G @ Sigma_xx",
-         keyword="Σ_yx", mistake="Σ_yx = G Σ_xx instead of Σ_xy"),
-    Edit("linear_map_moments", _SXY, "Sigma_xy = Sigma_xx",
+    Edit("linear_map_moments", _SYY, "Sigma_yy = Sigma_xx + Sigma_xn + Sigma_xn.T + R",
+         keyword="map G must appear", mistake="G left out of Σ_yy, also of its cross terms"),
+    Edit("linear_map_moments", _SYY, f"Sigma_yy = G @ (Sigma_xx + R) @ G.T + {_CROSS}",
+         keyword="after the map", mistake="the noise added to x before the map, y = G (x + n)"),
+    # the cross terms of the correlation: the derivation the exercise asks for
+    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + R",
+         keyword="correlated", mistake="Σ_yy of an independent noise (lecture 02 §5's formula)"),
+    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + G @ Sigma_xn + R",
+         keyword="only one of the two cross terms", mistake="the cross term G Σ_xn alone"),
+    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + Sigma_xn.T @ G.T + R",
+         keyword="only one of the two cross terms", mistake="the cross term Σ_xnᵀ Gᵀ alone"),
+    Edit("linear_map_moments", _SYY,
+         "Sigma_yy = G @ Sigma_xx @ G.T + G @ Sigma_xn + R\n    Sigma_yy = (Sigma_yy + Sigma_yy.T) / 2",
+         keyword="half of the cross terms", mistake="one cross term, then symmetrised (half of both)"),
+    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + 2 * G @ Sigma_xn + R",
+         keyword="transposes of each other", mistake="2 G Σ_xn: the cross terms taken as equal"),
+    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + 2 * Sigma_xn.T @ G.T + R",
+         keyword="transposes of each other", mistake="2 Σ_xnᵀ Gᵀ: the cross terms taken as equal"),
+    Edit("linear_map_moments", _SYY, f"Sigma_yy = G @ Sigma_xx @ G.T - ({_CROSS}) + R",
+         keyword="sign", mistake="the cross terms subtracted"),
+    Edit("linear_map_moments", _SYY, f"Sigma_yy = G @ Sigma_xx @ G.T + 2 * ({_CROSS}) + R",
+         keyword="counted twice", mistake="each cross term counted twice"),
+    Edit("linear_map_moments", _SYY,
+         "Sigma_yy = G @ Sigma_xx @ G.T + G @ Sigma_xn.T + Sigma_xn @ G.T + R",
+         keyword="Σ_xn is transposed", mistake="Σ_xn transposed in the cross terms (a shape error for n ≠ m)"),
+    Edit("linear_map_moments", _SYY,
+         "Sigma_yy = G @ Sigma_xx @ G.T + G.T @ Sigma_xn + Sigma_xn.T @ G + R",
+         keyword="Gᵀ stands where G belongs", mistake="Gᵀ Σ_xn + Σ_xnᵀ G as the cross terms"),
+    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + Sigma_xn + Sigma_xn.T + R",
+         keyword="missing from the cross terms", mistake="Σ_xn + Σ_xnᵀ as the cross terms, without G"),
+    # the cross-covariance Σ_xy
+    Edit("linear_map_moments", _SXY, "Sigma_xy = Sigma_xx @ G.T",
+         keyword="correlated", mistake="Σ_xy of an independent noise (lecture 02 §5's formula)"),
+    Edit("linear_map_moments", _SXY, "Sigma_xy = Sigma_xx @ G.T - Sigma_xn",
+         keyword="sign", mistake="Σ_xn subtracted in Σ_xy"),
+    Edit("linear_map_moments", _SXY, "Sigma_xy = Sigma_xx @ G.T + Sigma_xn.T",
+         keyword="Σ_xn is transposed", mistake="Σ_nx = Σ_xnᵀ added (a shape error for n ≠ m)"),
+    Edit("linear_map_moments", _SXY, "Sigma_xy = Sigma_xx @ G.T + G @ Sigma_xn",
+         keyword="added after the map", mistake="G Σ_xn in Σ_xy"),
+    Edit("linear_map_moments", _SXY, "Sigma_xy = Sigma_xx @ G.T + Sigma_xn @ G.T",
+         keyword="added after the map", mistake="Σ_xn Gᵀ in Σ_xy"),
+    Edit("linear_map_moments", _SXY, "Sigma_xy = Sigma_xx @ G.T + 2 * Sigma_xn",
+         keyword="counted twice", mistake="Σ_xn counted twice in Σ_xy"),
+    Edit("linear_map_moments", _SXY, "Sigma_xy = G @ Sigma_xx + Sigma_xn.T",
+         keyword="Σ_yx", mistake="Σ_yx = G Σ_xx + Σ_xnᵀ instead of Σ_xy"),
+    Edit("linear_map_moments", _SXY, "Sigma_xy = G @ Sigma_xx + Sigma_xn",
+         keyword="Σ_yx", mistake="G Σ_xx + Σ_xn"),
+    Edit("linear_map_moments", _SXY, "Sigma_xy = Sigma_xx + Sigma_xn",
          keyword="map G must appear", mistake="G left out of Σ_xy"),
-    Edit("linear_map_moments", _SXY, "Sigma_xy = G.T @ Sigma_xx",
-         keyword="comes first", mistake="Gᵀ Σ_xx"),
-    Edit("linear_map_moments", _SXY, "Sigma_xy = Sigma_xx @ G.T + R",
-         keyword="independent of x", mistake="R added to the cross-covariance"),
-    Edit("linear_map_moments", _SXY,
-         "Sigma_xy = Sigma_xx @ G.T @ np.linalg.inv(G @ Sigma_xx @ G.T + R)",
+    Edit("linear_map_moments", _SXY, "Sigma_xy = Sigma_xx",
+         keyword="map G must appear", mistake="Σ_xy = Σ_xx"),
+    Edit("linear_map_moments", _SXY, "Sigma_xy = G.T @ Sigma_xx + Sigma_xn",
+         keyword="comes first", mistake="Gᵀ Σ_xx + Σ_xn"),
+    Edit("linear_map_moments", _SXY, "Sigma_xy = Sigma_xx @ G.T + Sigma_xn + R",
+         keyword="no part of Σ_xy", mistake="R added to the cross-covariance"),
+    Edit("linear_map_moments", _SXY, "Sigma_xy = (Sigma_xx @ G.T + Sigma_xn) @ np.linalg.inv(Sigma_yy)",
          keyword="gain", mistake="the Kalman gain instead of the cross-covariance"),
     Edit("linear_map_moments", _MUY, "mu_y = mu_x",
          keyword="through the map", mistake="μ_y = μ_x"),
@@ -141,20 +190,24 @@ MUTANTS = [
          keyword="transposed", mistake="μ_x G, i.e. Gᵀ μ_x"),
     Edit("linear_map_moments", _LRET, "return mu_y, Sigma_xy, Sigma_yy",
          keyword="swapped", mistake="Σ_yy and Σ_xy returned in the wrong order"),
-    # the whole step of the linear map (issue 14): its placeholder and its plausible mistakes
+    Edit("linear_map_moments", _DEF, "def linear_map_moments(mu_x, Sigma_xx, G, R):",
+         keyword="five arguments", mistake="the lecture's four-argument signature kept"),
+    # the whole step (issue 14): its placeholder and its plausible mistakes
     Edit("linear_map_moments", _MOMENTS, "mu_y, Sigma_yy, Sigma_xy = mu_x, Sigma_xx, Sigma_xx",
          keyword="moments of x itself", mistake="the moments of x returned as those of y (the stub)"),
-    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ (Sigma_xx + R) @ G.T",
-         keyword="after the map", mistake="the noise added to x before the map, y = G (x + n)"),
     Edit("linear_map_moments", _MOMENTS,
-         "mu_y, Sigma_yy, Sigma_xy = G @ mu_x, R, Sigma_xx @ G.T",
+         "mu_y = G @ mu_x\n    Sigma_yy = G @ Sigma_xx @ G.T + R\n    Sigma_xy = Sigma_xx @ G.T",
+         keyword="correlated", mistake="the whole step of lecture 02 §5, for an independent noise"),
+    Edit("linear_map_moments", _MOMENTS,
+         "mu_y, Sigma_yy, Sigma_xy = G @ mu_x, R, Sigma_xx @ G.T + Sigma_xn",
          keyword="only the noise", mistake="Σ_yy = R, the uncertainty of x forgotten"),
     Edit("linear_map_moments", _MOMENTS,
-         "mu_y = G @ mu_x\n    Sigma_yy = G @ Sigma_xx @ G.T + R\n    Sigma_xy = G @ Sigma_xx",
+         f"mu_y = G @ mu_x\n    Sigma_yy = G @ Sigma_xx @ G.T + {_CROSS} + R\n"
+         "    Sigma_xy = G @ Sigma_xx + Sigma_xn.T",
          keyword="Σ_yx", mistake="the whole step with Σ_yx for Σ_xy"),
     Edit("linear_map_moments", _MOMENTS,
          "mu_y, Sigma_yy, Sigma_xy = G @ mu_x, G @ Sigma_xx @ G.T, Sigma_xx @ G.T",
-         keyword="R is missing", mistake="a noise-free sensor"),
+         keyword="R is missing", mistake="a noise-free sensor (neither R nor the correlation)"),
 
     # --- gaussian_fusion (optional challenge) -------------------------------------------
     Edit("gaussian_fusion", _FUSE,
@@ -240,31 +293,44 @@ EQUIVALENTS = [
          mistake="the precision form: the inverse of the xx block of the joint precision"),
     Edit("conditional_covariance", _RET, "return [mean, cov]",
          mistake="a list, without the final symmetrisation"),
-    Edit("linear_map_moments", _SXY, "Sigma_xy = (G @ Sigma_xx).T",
-         mistake="Σ_xy as (G Σ_xx)ᵀ"),
-    Edit("linear_map_moments", _SYY, "Sigma_yy = np.einsum('ij,jk,lk->il', G, Sigma_xx, G) + R",
+    Edit("linear_map_moments", _SXY, "Sigma_xy = (G @ Sigma_xx).T + Sigma_xn",
+         mistake="Σ_xy as (G Σ_xx)ᵀ + Σ_xn"),
+    Edit("linear_map_moments", _SYY,
+         f"Sigma_yy = np.einsum('ij,jk,lk->il', G, Sigma_xx, G) + {_CROSS} + R",
          mistake="einsum"),
-    Edit("linear_map_moments", _SYY, "Sigma_yy = G @ (G @ Sigma_xx).T + R",
-         mistake="G (G Σ_xx)ᵀ + R"),
+    Edit("linear_map_moments", _SYY, f"Sigma_yy = G @ (G @ Sigma_xx).T + {_CROSS} + R",
+         mistake="G (G Σ_xx)ᵀ + the cross terms + R"),
+    Edit("linear_map_moments", _SYY,
+         "cross = G @ Sigma_xn\n    Sigma_yy = G @ Sigma_xx @ G.T + cross + cross.T + R",
+         mistake="one cross term and its transpose"),
+    Edit("linear_map_moments", _SYY,
+         f"Sigma_yy = G @ Sigma_xx @ G.T + {_CROSS} + R\n    Sigma_yy = (Sigma_yy + Sigma_yy.T) / 2",
+         mistake="Σ_yy symmetrised"),
     Edit("linear_map_moments", _LRET, "return [mu_y, Sigma_yy, Sigma_xy]",
          mistake="a list instead of a tuple"),
     Edit("linear_map_moments", _MUY, "mu_y = np.dot(G, mu_x)", mistake="np.dot"),
     Edit("linear_map_moments", _MOMENTS,
-         "T = np.vstack([np.eye(len(mu_x)), G])             # [x; G x]\n"
-         "    joint = T @ Sigma_xx @ T.T\n"
-         "    joint[len(mu_x):, len(mu_x):] += R\n"
+         "n = len(mu_x)\n"
+         "    T = np.block([[np.eye(n), np.zeros((n, len(R)))], [G, np.eye(len(R))]])   # [x; y] = T [x; n]\n"
+         "    joint = T @ np.block([[Sigma_xx, Sigma_xn], [Sigma_xn.T, R]]) @ T.T\n"
          "    mu_y = G @ mu_x\n"
-         "    Sigma_yy = joint[len(mu_x):, len(mu_x):]\n"
-         "    Sigma_xy = joint[:len(mu_x), len(mu_x):]",
-         mistake="the blocks of the joint covariance of [x; y], as in lecture 02 §5"),
+         "    Sigma_yy = joint[n:, n:]\n"
+         "    Sigma_xy = joint[:n, n:]",
+         mistake="the blocks of T Cov([x; n]) Tᵀ, lecture 02 §5's compact form with Cov([x; n]) full"),
     Edit("linear_map_moments", _MOMENTS,
-         "mu_y = G @ mu_x\n    Sigma_xy = Sigma_xx @ G.T\n    Sigma_yy = G @ Sigma_xy + R",
-         mistake="Σ_yy from Σ_xy, as G Σ_xy + R"),
+         "mu_y = G @ mu_x\n    Sigma_xy = Sigma_xx @ G.T + Sigma_xn\n"
+         "    Sigma_yy = G @ Sigma_xy + Sigma_xn.T @ G.T + R",
+         mistake="Σ_yy from Σ_xy, as G Σ_xy + Σ_xnᵀ Gᵀ + R"),
+    Edit("linear_map_moments", _MOMENTS,
+         "mu_y = G @ mu_x\n    Sigma_xy = Sigma_xx @ G.T + Sigma_xn\n"
+         "    Sigma_yy = G @ Sigma_xy + (G @ Sigma_xn).T + R",
+         mistake="Σ_yy from Σ_xy, with the second cross term as (G Σ_xn)ᵀ"),
     Edit("gaussian_fusion", _FUSE,
          "mean, cov = gaussian_conditional(mu_a, mu_a, Sigma_a, Sigma_a, Sigma_a + Sigma_b, mu_b)",
          mistake="conditioning with G = I: b is a reading of x with noise Σ_b"),
     Edit("gaussian_fusion", _FUSE,
-         "mu_y, Sigma_yy, Sigma_xy = linear_map_moments(mu_a, Sigma_a, np.eye(len(mu_a)), Sigma_b)\n"
+         "mu_y, Sigma_yy, Sigma_xy = linear_map_moments(mu_a, Sigma_a, np.eye(len(mu_a)), Sigma_b,\n"
+         "                                                np.zeros_like(Sigma_a))\n"
          "    mean, cov = gaussian_conditional(mu_a, mu_y, Sigma_a, Sigma_xy, Sigma_yy, mu_b)",
          mistake="the exercise's two functions chained, G = I"),
     Edit("gaussian_fusion", _FUSE,
@@ -288,8 +354,8 @@ EQUIVALENT_MUTANTS = [
     Equivalent("conditional_covariance", _RET, "return mean, cov",
                reason="Σ_xx − Σ_xy Σ_yy⁻¹ Σ_xyᵀ is symmetric up to round-off (~1e-15 relative): "
                       "symmetrising it, or not, changes nothing the check's tolerance sees"),
-    Equivalent("linear_map_moments", _SYY, "Sigma_yy = G @ Sigma_xx @ G.T + R.T",
+    Equivalent("linear_map_moments", _SYY, f"Sigma_yy = G @ Sigma_xx @ G.T + {_CROSS} + R.T",
                reason="R is symmetric, so R.T is R"),
-    Equivalent("linear_map_moments", _SXY, "Sigma_xy = Sigma_xx.T @ G.T",
+    Equivalent("linear_map_moments", _SXY, "Sigma_xy = Sigma_xx.T @ G.T + Sigma_xn",
                reason="Σ_xx is symmetric, so Σ_xxᵀ Gᵀ is Σ_xx Gᵀ"),
 ]

@@ -35,6 +35,9 @@ CV_CALL = "F, Q = cv_matrices(t[k] - t[k - 1], sigma_a)"
 UPDATE_CALL = "x, P = kf_update(x, P, y[k], G, R)"
 LOOP = "for k in range(1, len(t)):"
 STORE = "xs, Ps = [x], [P]"
+# the challenge's start: run_gnss_kf's row 0
+GAP_START = ("x_first, P_first = run_gnss_kf(t[:1], y[:1], sigma_a, sigma_gnss, sigma_v0)\n"
+             "    x, P = x_first[0], P_first[0]            # your run_gnss_kf's belief at t[0] (its row 0)")
 # the challenge's loop body (run_gnss_kf_gaps)
 GAP_STEP = ("F, Q = cv_matrices(t[k] - t[k - 1], sigma_a)\n        x, P = kf_predict(x, P, F, Q)\n"
             "        if not np.all(np.isnan(y[k])):\n            x, P = kf_update(x, P, y[k], G, R)")
@@ -233,8 +236,37 @@ MUTANTS = [
          keyword="fix kf_gain first", mistake="kf_gain adds √R (kf_update itself right)"),
 
     # --- gnss_kf_run -----------------------------------------------------------------------
+    # row 0, the belief at t[0]: the learner decides x₀ and P₀ from what the first fix tells
+    Edit("gnss_kf_run", f"{X0}\n    {P0}", "x, P = np.zeros(6), np.eye(6)",
+         keyword="placeholder", mistake="x₀ = 0, P₀ = I, nothing decided (the stub)"),
     Edit("gnss_kf_run", P0, "P = np.diag(np.r_[np.full(3, sigma_gnss**2), np.full(3, 1e-4)])",
-         keyword="initial velocity variance", mistake="a tiny start-velocity variance (the stub)"),
+         keyword="initial velocity variance", mistake="a tiny start-velocity variance: the car taken as standing still"),
+    Edit("gnss_kf_run", P0, "P = np.diag(np.r_[np.full(3, sigma_gnss**2), np.zeros(3)])",
+         keyword="near zero", mistake="a zero start-velocity variance: the velocity taken as known"),
+    Edit("gnss_kf_run", P0, "P = np.diag(np.r_[np.full(3, sigma_gnss**2), np.ones(3)])",
+         keyword="near zero", mistake="a unit start-velocity variance (±3 m/s for a car at up to 12 m/s)"),
+    Edit("gnss_kf_run", P0, "P = np.diag(np.full(6, sigma_gnss**2))",
+         keyword="not the fix's error", mistake="the fix's variance for the velocity too"),
+    Edit("gnss_kf_run", P0, "P = np.diag(np.r_[np.full(3, sigma_gnss**2), np.full(3, sigma_v0**4)])",
+         keyword="squared twice", mistake="σ_v0 squared twice"),
+    Edit("gnss_kf_run", P0, "P = np.diag(np.r_[np.zeros(3), np.full(3, sigma_v0**2)])",
+         keyword="exact", mistake="a zero position variance: the first fix taken as exact"),
+    Edit("gnss_kf_run", P0, "P = sigma_v0**2 * np.eye(6)",
+         keyword="throws away", mistake="everything as unknown as the velocity: the first fix ignored"),
+    Edit("gnss_kf_run", P0,
+         "P = np.diag(np.r_[np.full(3, sigma_gnss**2), np.full(3, sigma_v0**2)])\n"
+         "    P[:3, 3:] = P[3:, :3] = 0.5 * sigma_gnss * sigma_v0 * np.eye(3)",
+         keyword="couples the position and velocity", mistake="position and velocity correlated at t[0]"),
+    Edit("gnss_kf_run", P0,
+         "P = np.diag(np.r_[np.full(3, sigma_gnss**2), np.full(3, sigma_v0**2)])\n"
+         "    P[3:, 3:] += 0.3 * sigma_v0**2 * (np.ones((3, 3)) - np.eye(3))",
+         keyword="velocity components", mistake="the velocity components correlated at t[0]"),
+    Edit("gnss_kf_run", X0, "x = np.r_[y[0], (y[1] - y[0]) / (t[1] - t[0])]", cell="run",
+         keyword="second fix", mistake="the start velocity from the first two fixes"),
+    Edit("gnss_kf_run", X0, "x = np.r_[y[0], np.full(3, sigma_v0)]", cell="run",
+         keyword="direction of travel", mistake="a start velocity of σ_v0 on each axis"),
+    Edit("gnss_kf_run", X0, "x = np.r_[y[1], np.zeros(3)]", cell="run",
+         keyword="first fix itself", mistake="the second fix as the start position"),
     Edit("gnss_kf_run", P0, "P = np.diag(np.r_[np.full(3, sigma_gnss), np.full(3, sigma_v0**2)])",
          keyword="position variance must be σ²", mistake="initial position covariance σ, not σ²"),
     Edit("gnss_kf_run", P0, "P = np.diag(np.r_[np.full(3, sigma_gnss**2), np.full(3, sigma_v0)])",
@@ -355,9 +387,14 @@ MUTANTS = [
     Edit("gnss_kf_gaps", "F, Q = cv_matrices(t[k] - t[k - 1], sigma_a)\n        x, P = kf_predict",
          "F, Q = cv_matrices(1.0, sigma_a)\n        x, P = kf_predict",
          keyword="own time step", mistake="a fixed step of 1 s (the fixes are not exactly 1 s apart)"),
-    Edit("gnss_kf_gaps", "    P = np.diag(np.r_[np.full(3, sigma_gnss**2), np.full(3, sigma_v0**2)])",
-         "    P = np.diag(np.r_[np.full(3, sigma_gnss**2), np.full(3, 1e-4)])",
-         keyword="initial velocity variance", mistake="the exercise's stubbed P₀ copied over"),
+    # the challenge starts from run_gnss_kf's row 0: a wrong one is named as run_gnss_kf's
+    Edit("gnss_kf_gaps", P0, "P = np.diag(np.r_[np.full(3, sigma_gnss**2), np.full(3, 1e-4)])",
+         cell="run", keyword="fix run_gnss_kf first",
+         mistake="run_gnss_kf's P₀ with a tiny velocity variance, which the challenge starts from"),
+    Edit("gnss_kf_gaps", GAP_START,
+         "x = np.r_[y[0], np.zeros(3)]\n    P = np.diag(np.r_[np.full(3, sigma_gnss**2), np.full(3, 1e-4)])",
+         keyword="initial velocity variance",
+         mistake="its own start belief, with a tiny velocity variance (run_gnss_kf right)"),
     # an upstream mistake: a correct run_gnss_kf_gaps calls a wrong kf_update
     Edit("gnss_kf_gaps", JOSEPH, "P_hat = I_KG @ P_check @ I_KG.T", cell="update",
          keyword="fix kf_update first", mistake="kf_update's Joseph form without K R Kᵀ"),
@@ -428,6 +465,12 @@ EQUIVALENTS = [
     # gnss_kf_run
     Edit("gnss_kf_run", P0, "P = np.diag([sigma_gnss**2] * 3 + [sigma_v0**2] * 3)",
          mistake="P₀ from a list"),
+    Edit("gnss_kf_run", P0, "P = np.block([[R, np.zeros((3, 3))], [np.zeros((3, 3)), sigma_v0**2 * np.eye(3)]])",
+         mistake="P₀ as blocks: the fix's R, then the velocity's"),
+    Edit("gnss_kf_run", f"{X0}\n    {P0}",
+         "x = np.concatenate([y[0], np.zeros(3)])\n"
+         "    P = np.diag(np.concatenate([np.diag(R), np.full(3, sigma_v0)**2]))",
+         mistake="x₀ and P₀ from R's diagonal"),
     Edit("gnss_kf_run", P0, "P = np.zeros((6, 6))\n    P[:3, :3] = sigma_gnss**2 * np.eye(3)\n"
          "    P[3:, 3:] = sigma_v0**2 * np.eye(3)", mistake="P₀ filled block by block"),
     Edit("gnss_kf_run", R_RUN, "R = np.diag(np.full(3, sigma_gnss**2))", cell="run",
@@ -468,6 +511,9 @@ EQUIVALENTS = [
          mistake="the update in an else branch"),
     Edit("gnss_kf_gaps", "return np.array(xs), np.array(Ps)", "return np.stack(xs), np.stack(Ps)",
          mistake="np.stack"),
+    Edit("gnss_kf_gaps", GAP_START,
+         "x = np.r_[y[0], np.zeros(3)]\n    P = np.diag(np.r_[np.full(3, sigma_gnss**2), np.full(3, sigma_v0**2)])",
+         mistake="its own start belief, written out as run_gnss_kf's"),
 ]
 
 EQUIVALENT_MUTANTS = [
