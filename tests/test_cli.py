@@ -62,6 +62,17 @@ def test_a_missing_file_is_named_and_grading_yourself_writes_feedback_md(tmp_pat
     assert [p.name for p in (tmp_path / "fb").iterdir()] == ["feedback.md"]
 
 
+def test_grading_in_process_leaves_the_run_seed_and_the_hint_tier_as_they_were(tmp_path, capsys):
+    # a grade draws the checks' inputs from its run seed at tier 1 (or 2 with --all-hints); a
+    # test or a notebook that calls cli.main and goes on must find the fixed cases again
+    from kalman_course.checks import cases, hints
+    before = (cases.run_seed(), hints.settings())
+    for extra in ([], ["--all-hints"]):
+        cli.main(["grade", str(tmp_path / "03_kalman_filter.ipynb"), "--seed", "12345", *extra])
+        assert (cases.run_seed(), hints.settings()) == before
+    capsys.readouterr()
+
+
 def test_every_hint_can_be_listed_under_the_table():
     checks = [grading.CheckResult("kf_predict", "g1", 0, 2, "CheckFailed: kf_predict: P is wrong. Hint: add Q\nmore"),
               grading.CheckResult("kf_gain", "g2", 2, 2),

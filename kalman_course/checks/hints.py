@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import re
 
-__all__ = ["formula", "render", "tier", "set_tier", "more_hints", "escalates", "TIERS"]
+__all__ = ["formula", "render", "tier", "settings", "set_tier", "more_hints", "escalates", "TIERS"]
 
 #: The tiers: what each one shows.
 TIERS = {1: "concepts and lecture sections", 2: "concepts, sections and formulas"}
@@ -50,6 +50,12 @@ def tier() -> int:
 def escalates() -> bool:
     """Whether a check that fails twice with the same message shows tier 2 the second time."""
     return _state["escalate"]
+
+
+def settings() -> dict:
+    """The current ``level``, ``escalate`` and ``more`` of :func:`set_tier`, to restore later
+    with ``set_tier(**settings)``."""
+    return {"level": _state["tier"], "escalate": _state["escalate"], "more": _state["more"]}
 
 
 def set_tier(level: int, *, escalate: bool = True, more: str = IN_NOTEBOOK) -> None:

@@ -74,6 +74,18 @@ def _cmd_build(args: argparse.Namespace) -> int:
 
 
 def _cmd_grade(args: argparse.Namespace) -> int:
+    # the run seed and the hint tier are this process's settings: a caller that goes on after
+    # cli.main (a test, a notebook) finds them as they were
+    from kalman_course.checks import cases, hints
+    seed, tier = cases.run_seed(), hints.settings()
+    try:
+        return _grade(args)
+    finally:
+        cases.set_run_seed(seed)
+        hints.set_tier(**tier)
+
+
+def _grade(args: argparse.Namespace) -> int:
     from kalman_course.tooling import gradebook, grading
 
     if args.seed is None and args.shard:
