@@ -7,6 +7,7 @@ from the sample size.
 
 from __future__ import annotations
 
+import dataclasses
 from types import SimpleNamespace
 
 import matplotlib.pyplot as plt
@@ -153,18 +154,37 @@ def test_inflation_and_decimation_at_white_noise_change_nothing():
 # ---------------------------------------------------------------------------------------
 
 def test_augmented_filter_is_consistent_where_the_plain_one_is_not():
-    # τ = 1 s on cruise, 3 seeds: the seed-and-time mean pose NEES against the 95 % interval
-    # of an average of 3 χ²(6) values (chi2_bounds(6, 3))
+    # τ = 1 s on cruise, 3 seeds: at each pose time the seed-averaged pose NEES against the
+    # 95 % interval of an average of 3 χ²(6) values (chi2_bounds(6, 3))
     res = cn.coloured_noise("cruise", time_constants=(1.0,), seeds=(1, 2, 3), remedies=("plain", "augmented"))
     lo, hi = metrics.chi2_bounds(6, 3)
     assert res.nees_band == (lo, hi)
-    plain, augmented = res.nees_mean[0]
-    assert lo <= augmented <= hi
-    assert res.verdict(1.0, "augmented") == "consistent"
-    assert plain > 3 * hi                         # several times off, beyond the band's far edge
+    assert res.nees_series.shape[:3] == (1, 2, 3)
+    np.testing.assert_allclose(res.nees_series.mean(axis=-1), res.nees_pose, rtol=1e-12)
+    (plain_below, plain_above), (aug_below, aug_above) = res.band_shares[0]
+    assert res.verdict(1.0, "augmented") == "consistent" and max(aug_below, aug_above) <= cn.VERDICT_SHARE
+    assert plain_above > 0.9                      # above the band at nearly every time
     assert res.verdict(1.0, "plain") == "overconfident"
     # and the augmented filter is the more accurate on every seed
     assert (res.ape_position[0, 1] < res.ape_position[0, 0]).all()
+
+
+def test_the_verdict_is_taken_per_time_and_names_the_side():
+    # a consistent filter's NEES (χ²(6) draws, independent over seeds), then the same scaled
+    # by 0.6 (underconfident) and 1.6 (overconfident); the seed-and-time means of the scaled
+    # ones (3.6, 9.6) lie inside or at the edge of chi2_bounds(6, 5) = [3.36, 9.40], which is
+    # why that interval is not used for the means
+    res = cn.coloured_noise("cruise", time_constants=(0.0,), seeds=(1, 2, 3, 4, 5), remedies=("plain",))
+    rng = np.random.default_rng(4)
+    draws = rng.chisquare(6, size=(1, 3, 5, 4000))
+    fake = dataclasses.replace(res, remedies=("plain", "inflated_R", "augmented"),
+                               nees_series=draws * np.array([1.0, 0.6, 1.6])[None, :, None, None],
+                               nees_pose=draws.mean(axis=-1) * np.array([1.0, 0.6, 1.6])[None, :, None])
+    shares = fake.band_shares[0]
+    np.testing.assert_allclose(shares[0], [0.025, 0.025], atol=0.01)
+    assert [fake.verdict(0.0, r) for r in fake.remedies] == ["consistent", "underconfident", "overconfident"]
+    lo, hi = fake.nees_band
+    assert lo < fake.nees_mean[0, 1] and fake.nees_mean[0, 2] < hi + 0.5
 
 
 def test_remedies_agree_on_white_noise_and_are_deterministic(cruise):

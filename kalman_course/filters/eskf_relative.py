@@ -33,6 +33,37 @@ visual-inertial odometry), with stochastic cloning (Roumeliotis & Burdick, ICRA 
 GNSS fixes (``gnss``) update the same augmented state with G = [I, 0, 0, 0, 0 | 0, 0]; the
 clone is corrected through its cross-covariance like every other part.
 
+Where the Jacobians are linearised (``linearise_at``)
+---------------------------------------------------
+With increments only, the global position and the heading (a rotation about gravity) are
+unobservable: moving the whole trajectory, or turning it about the vertical, changes no
+increment. In error coordinates that turn is the direction (u = unit vector along g)
+
+    N(p, v, R) = [[u]× p;  [u]× v;  Rᵀ u;  0;  0]      (15, per radian),
+
+and for the clone [[u]× p_c; R_cᵀ u]. G_rel annihilates [N(x); N(clone)] at any pair of
+poses, and the transition over one frame interval maps N at its start to N at its end
+when its pose blocks are those of the nominal trajectory from a to b (T seconds):
+
+    Φ_pθ = −[p_b − p_a − v_a T − ½ g T²]× R_a,   Φ_vθ = −[v_b − v_a − g T]× R_a,   Φ_θθ = R_bᵀ R_a
+
+(:func:`pose_transition_blocks`; exact for the continuous error dynamics). The default
+(``linearise_at=None``) evaluates everything at the current estimates, so Φ starts from the
+*updated* state at frame k while the covariance's unobservable direction was carried to the
+*predicted* one; the difference is the update's correction, and it lets the filter gain
+information along N that no measurement carries (the inconsistency of Huang, Mourikis and
+Roumeliotis). Two other choices are offered:
+
+- ``"first_estimates"`` (FEJ): every Jacobian at the first estimate of the state it
+  belongs to: the clone at its prediction before the update of its frame, and over each
+  interval the three pose blocks of Φ replaced by the ones above with a = that prediction
+  and b = the prediction at the end (the rest of Φ and the process noise as computed);
+- a truth (anything with ``t``, ``position``, ``velocity``, ``rotation`` at every VO frame's
+  time): the same with a, b and both poses of G_rel taken from it, the "ideal EKF"
+  diagnostic, which needs the truth and so only serves to find the cause.
+
+The residual y is always formed at the estimates.
+
 Everything else is :mod:`kalman_course.filters.eskf`'s, used as it is: the propagation
 kernel (nominal midpoint mechanisation, F, B, Q), the gain, the Joseph update, the
 injection and the reset (the clone's attitude reset is the ESKF's, applied to the clone's
@@ -48,18 +79,18 @@ import numpy as np
 from numpy import dot
 
 from kalman_course.core import so3
-from kalman_course.core.linalg import joseph_update
+from kalman_course.core.linalg import joseph_update, symmetrise
 from kalman_course.core.observations import PoseObservations, PositionObservations
 from kalman_course.core.validation import as_covariance, as_flag, as_rotation, as_scalar, as_vector
-from kalman_course.filters.eskf import (IDX_P, IDX_TH, IMU_GAP_FACTOR, POSE_G, POSITION_G, EskfResult, NominalState,
-                                        initial_covariance)
+from kalman_course.filters.eskf import (IDX_P, IDX_TH, IDX_V, IMU_GAP_FACTOR, POSE_G, POSITION_G, EskfResult,
+                                        NominalState, initial_covariance)
 # the ESKF's kernels and argument checks: every formula of the filter is eskf.py's
 from kalman_course.filters.eskf import (_as_config, _as_gravity, _as_nominal, _as_observations, _correct, _gain,
                                         _gnss_noise, _imu_gaps, _imu_samples, _inject, _position_residual,
                                         _process_noise, _propagate, _reset_covariance, _sorted_events, _timeline)
 
 __all__ = ["IDX_PC", "IDX_THC", "relative_motion", "relative_pose_residual", "relative_pose_jacobian",
-           "clone_covariance", "RelativeRunResult", "run_relative"]
+           "clone_covariance", "yaw_nullspace", "pose_transition_blocks", "RelativeRunResult", "run_relative"]
 
 #: Rows of the clone's position and attitude errors in the augmented 21-state.
 IDX_PC, IDX_THC = slice(15, 18), slice(18, 21)
@@ -95,6 +126,31 @@ def _relative_jacobian(R_c, dp_check, dR_check) -> np.ndarray:
     G[3:6, IDX_TH] = _I3
     G[3:6, IDX_THC] = -dR_check.T
     return G
+
+
+def _yaw_nullspace(p, v, R, g) -> np.ndarray:
+    """N (15,): the error of turning the state by one radian about the gravity direction."""
+    u = g / np.sqrt(dot(g, g))
+    n = np.zeros(15)
+    n[IDX_P] = np.cross(u, p)
+    n[IDX_V] = np.cross(u, v)
+    n[IDX_TH] = dot(R.T, u)
+    return n
+
+
+def _pose_blocks(a, b, T, g):
+    """(Φ_pθ, Φ_vθ, Φ_θθ) of an interval of T s from a = (p, v, R) to b along the nominal trajectory."""
+    (p_a, v_a, R_a), (p_b, v_b, R_b) = a, b
+    dp = p_b - p_a - v_a * T - 0.5 * g * T * T
+    dv = v_b - v_a - g * T
+    return (-dot(so3.hat(dp, check=False), R_a), -dot(so3.hat(dv, check=False), R_a), dot(R_b.T, R_a))
+
+
+def _with_pose_blocks(Phi, a, b, T, g) -> np.ndarray:
+    """Φ with its three pose blocks replaced by :func:`_pose_blocks` at (a, b)."""
+    Phi = Phi.copy()
+    Phi[IDX_P, IDX_TH], Phi[IDX_V, IDX_TH], Phi[IDX_TH, IDX_TH] = _pose_blocks(a, b, T, g)
+    return Phi
 
 
 def _clone(P15) -> np.ndarray:
@@ -183,6 +239,56 @@ def clone_covariance(P) -> np.ndarray:
     return _clone(as_covariance(P, "P", 15, psd=True))
 
 
+def yaw_nullspace(position, velocity, R, gravity=(0.0, 0.0, -9.8092)) -> np.ndarray:
+    """The unobservable heading direction N (15,) of the error state at one state.
+
+    Turning the true state by a small angle φ about the gravity direction u = g/|g| changes
+    the error (nominal − true) by −φ N with N = [[u]× p; [u]× v; Rᵀ u; 0; 0]; no increment,
+    and no IMU reading, can see it.
+
+    Parameters
+    ----------
+    position, velocity : array_like, shape (3,)
+        p (m) and v (m/s), navigation frame.
+    R : array_like, shape (3, 3)
+        Attitude R_nb.
+    gravity : array_like, shape (3,)
+        g, m/s² (only its direction is used).
+    """
+    g = _as_gravity(gravity)
+    return _yaw_nullspace(as_vector(position, "position", 3), as_vector(velocity, "velocity", 3),
+                          as_rotation(R, "R"), g)
+
+
+def pose_transition_blocks(start, end, T, gravity=(0.0, 0.0, -9.8092)):
+    """The pose blocks of the transition Φ over T s along a nominal trajectory from ``start`` to ``end``.
+
+    Parameters
+    ----------
+    start, end : tuple of (array_like (3,), array_like (3,), array_like (3, 3))
+        (p, v, R) at the interval's two ends: position m, velocity m/s, attitude R_nb.
+    T : float
+        Length of the interval, s.
+    gravity : array_like, shape (3,)
+        g in the navigation frame, m/s².
+
+    Returns
+    -------
+    Phi_p_theta, Phi_v_theta, Phi_theta_theta : numpy.ndarray, shape (3, 3) each
+        −[p_b − p_a − v_a T − ½ g T²]× R_a, −[v_b − v_a − g T]× R_a and R_bᵀ R_a: ∂δp_b/∂δθ_a,
+        ∂δv_b/∂δθ_a and ∂δθ_b/∂δθ_a of the continuous error dynamics (noise and biases
+        aside). With them Φ maps :func:`yaw_nullspace` at ``start`` onto the one at ``end``.
+    """
+    def pose(value, name):
+        if not isinstance(value, (tuple, list)) or len(value) != 3:
+            raise ValueError(f"{name} must be a tuple (p (3,), v (3,), R (3, 3)), got {value!r}")
+        return (as_vector(value[0], f"{name} position", 3), as_vector(value[1], f"{name} velocity", 3),
+                as_rotation(value[2], f"{name} rotation"))
+
+    T = as_scalar(T, "T")
+    return _pose_blocks(pose(start, "start"), pose(end, "end"), T, _as_gravity(gravity))
+
+
 # ---------------------------------------------------------------------------------------
 # Batch runner
 # ---------------------------------------------------------------------------------------
@@ -211,10 +317,45 @@ def _as_relative_std(value) -> np.ndarray:
     return std
 
 
+class _TruthLookup:
+    """(p, v, R) of a reference trajectory at exactly its own times (for ``linearise_at``)."""
+
+    def __init__(self, ref):
+        try:
+            t, p, v, R = (np.asarray(getattr(ref, f), dtype=float) for f in ("t", "position", "velocity", "rotation"))
+        except AttributeError:
+            raise ValueError("linearise_at must be None, 'first_estimates' or a trajectory with t, position, "
+                             f"velocity and rotation (e.g. the truth), got {type(ref).__name__}") from None
+        n = t.shape[0] if t.ndim == 1 else -1
+        if n < 1 or p.shape != (n, 3) or v.shape != (n, 3) or R.shape != (n, 3, 3):
+            raise ValueError(f"linearise_at: t (K,), position (K, 3), velocity (K, 3) and rotation (K, 3, 3) "
+                             f"must agree, got {t.shape}, {p.shape}, {v.shape}, {R.shape}")
+        self.t, self.p, self.v, self.R = t, p, v, R
+
+    def __call__(self, time: float):
+        k = int(np.clip(np.searchsorted(self.t, time), 0, len(self.t) - 1))
+        for j in (k - 1, k):
+            if 0 <= j < len(self.t) and abs(self.t[j] - time) <= 1e-6:
+                return self.p[j], self.v[j], self.R[j]
+        raise ValueError(f"linearise_at has no state at τ = {time:.6f} s: it must hold every VO frame's "
+                         f"(and GNSS fix's) time")
+
+
+def _as_linearisation(value):
+    """None (the estimates), "fej" for first estimates, or a :class:`_TruthLookup`."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        if value != "first_estimates":
+            raise ValueError(f"linearise_at must be None, 'first_estimates' or a trajectory, got {value!r}")
+        return "fej"
+    return _TruthLookup(value)
+
+
 def run_relative(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, vo, relative_std,
                  gnss=None, start: int = 0, t_end: float | None = None, P0=None,
-                 use_interpolation_flags: bool = True, gap_factor: float | None = IMU_GAP_FACTOR
-                 ) -> RelativeRunResult:
+                 use_interpolation_flags: bool = True, gap_factor: float | None = IMU_GAP_FACTOR,
+                 linearise_at=None) -> RelativeRunResult:
     """Run the ESKF on an IMU record, fusing VO pose increments (and optionally GNSS fixes).
 
     Parameters
@@ -250,6 +391,12 @@ def run_relative(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092)
     gap_factor : float or None
         IMU steps longer than this many median steps are gaps (inflated noise, warning), as
         in :func:`kalman_course.filters.eskf.run`.
+    linearise_at : None, "first_estimates" or trajectory
+        Where Φ's pose blocks and G_rel are evaluated once a clone exists (module
+        docstring): None (default) at the current estimates; "first_estimates" (FEJ) at
+        each state's first estimate; a trajectory (``t`` (K,), ``position`` (K, 3),
+        ``velocity`` (K, 3), ``rotation`` (K, 3, 3), e.g. the truth, holding every VO
+        frame's and GNSS fix's time) at its states: the ideal-EKF diagnostic.
 
     Returns
     -------
@@ -287,6 +434,10 @@ def run_relative(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092)
                        cfg.bias_model)
 
     exact = cfg.exact_reset
+    lin = _as_linearisation(linearise_at)
+    lin_node = (x.position, x.velocity, x.rotation)   # first estimate at the current node (before its updates)
+    clone_lin = None                                   # where G_rel takes the clone's pose
+    zero15 = np.zeros((15, 15))
     G_gnss = np.hstack([POSITION_G, np.zeros((3, 6))])
     clone, vo_prev = None, None          # cloned nominal pose and the VO pose at the same frame
     rows, innovations, S_rel, gnss_innovations, S_gnss = [], [], [], [], []
@@ -294,8 +445,20 @@ def run_relative(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092)
     for e, target in enumerate(ev_node.tolist()):
         if target > node:                 # propagate: the 15-state as the ESKF, the cross-covariance by Φ
             sl = slice(node, target)
-            x, P15, Phi, _, _ = _propagate(x, P[:15, :15], f_nodes[node:target + 1], w_mean[sl], dt[sl],
-                                           q[sl], g, cfg.bias_model)
+            if lin is None or clone is None:
+                x, P15, Phi, _, _ = _propagate(x, P[:15, :15], f_nodes[node:target + 1], w_mean[sl], dt[sl],
+                                               q[sl], g, cfg.bias_model)
+            else:                         # Φ's pose blocks from the chosen linearisation points
+                P_old = P[:15, :15]
+                x, noise, Phi, _, _ = _propagate(x, zero15, f_nodes[node:target + 1], w_mean[sl], dt[sl],
+                                                 q[sl], g, cfg.bias_model)
+                if lin == "fej":
+                    a, b = lin_node, (x.position, x.velocity, x.rotation)
+                else:
+                    a, b = lin(t_nodes[node]), lin(t_nodes[target])
+                Phi = _with_pose_blocks(Phi, a, b, t_nodes[target] - t_nodes[node], g)
+                P15 = symmetrise(dot(dot(Phi, P_old), Phi.T) + noise)
+            lin_node = (x.position, x.velocity, x.rotation)
             if clone is None:
                 P = P15
             else:
@@ -320,12 +483,20 @@ def run_relative(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092)
             if clone is not None:
                 dp_m, dR_m = _relative_motion(*vo_prev, p_vo, R_vo)
                 y, dp_check, dR_check = _relative_residual(*clone, x.position, x.rotation, dp_m, dR_m)
-                G = _relative_jacobian(clone[1], dp_check, dR_check)
+                if lin is None:
+                    G = _relative_jacobian(clone[1], dp_check, dR_check)
+                else:
+                    p_l, _, R_l = lin_node if lin == "fej" else lin(t_nodes[target])
+                    dp_l, dR_l = _relative_motion(*clone_lin, p_l, R_l)
+                    G = _relative_jacobian(clone_lin[1], dp_l, dR_l)
                 x, clone, P, S = _correct_augmented(x, clone, P, y, G, R_rel, exact)
                 innovations.append(y)
                 S_rel.append(S)
                 updated = True
             clone, vo_prev = (x.position, x.rotation), (p_vo, R_vo)
+            if lin is not None:
+                p_l, _, R_l = lin_node if lin == "fej" else lin(t_nodes[target])
+                clone_lin = (p_l, R_l)
             P = _clone(P[:15, :15])
         if rows and rows[-1][0] == target:            # a second event at the same node
             updated = updated or rows.pop()[3]

@@ -68,7 +68,8 @@ def plot_coloured_noise(result, *, accuracy: bool = True, figsize=None):
     result : ColouredNoiseResult
         From :func:`kalman_course.chapters.coloured_noise.coloured_noise`: ``time_constants``
         (T,) s, ``remedies`` (M,), ``nees_pose`` and ``position_ratio`` (T, M, S) per seed,
-        ``nees_band`` the 95 % interval of the seed-averaged NEES.
+        ``nees_band`` the 95 % interval of the seed-averaged NEES at one time (drawn for
+        scale; the verdicts are taken per time, see ``ColouredNoiseResult.verdict``).
     accuracy : bool
         Also draw the ESKF/raw position APE ratio in a left panel (default).
     figsize : tuple, optional
@@ -100,7 +101,8 @@ def plot_coloured_noise(result, *, accuracy: bool = True, figsize=None):
     n_seeds = nees.shape[2]
 
     ax_nees.axhspan(lo, hi, color=COLORS["band"], alpha=0.5, lw=0,
-                    label=f"95 % interval, mean of {n_seeds} seeds [{lo:.2f}, {hi:.2f}]")
+                    label=f"95 % interval of the {n_seeds}-seed average at one time [{lo:.2f}, {hi:.2f}] "
+                          "(for scale: a time mean varies less)")
     ax_nees.axhline(6.0, color="0.4", lw=0.8, ls="--", label="expected value 6")
     for j, remedy in enumerate(remedies):
         xj = x + (j - (len(remedies) - 1) / 2) * width
