@@ -448,8 +448,9 @@ def coloured_noise_rows(excerpt: str = "cruise", time_constants=COLOURED_TAUS, s
     Real: the KITTI IMU and ground truth of ``excerpt``. Simulated: the lidar pose errors
     (first-order Gauss–Markov, the filter's σ, time constant τ; τ = 0 is white). Per τ and
     filter: the ESKF/raw position APE ratio and the pose NEES (median and range over the
-    seeds), the seed-and-time mean NEES and its verdict against the 95 % interval of a mean
-    of len(seeds) χ²(6) values (:func:`kalman_course.chapters.coloured_noise.coloured_noise`).
+    seeds), the seed-and-time mean NEES, the shares of pose times whose seed-averaged NEES lies
+    below and above the 95 % interval of a mean of len(seeds) χ²(6) values, and the verdict
+    they give (:meth:`kalman_course.chapters.coloured_noise.ColouredNoiseResult.verdict`).
 
     Parameters
     ----------
@@ -460,7 +461,7 @@ def coloured_noise_rows(excerpt: str = "cruise", time_constants=COLOURED_TAUS, s
     seeds : sequence of int
         Seeds of the simulated errors.
     """
-    from kalman_course.chapters.coloured_noise import coloured_noise, remedy_label
+    from kalman_course.chapters.coloured_noise import VERDICT_SHARE, coloured_noise, remedy_label
 
     r = coloured_noise(excerpt, time_constants=time_constants, seeds=seeds)
     lo, hi = r.nees_band
@@ -468,11 +469,12 @@ def coloured_noise_rows(excerpt: str = "cruise", time_constants=COLOURED_TAUS, s
              f"errors, first-order Gauss–Markov per component with the filter's own σ ({r.sigma_position:g} m, "
              f"{r.sigma_attitude_deg:g}°) and time constant τ (τ = 0: white), poses every {r.interval:.3f} s; "
              f"{len(r.seeds)} seeds ({', '.join(map(str, r.seeds))}), median (min–max) over them. The augmented "
-             f"filter is told the τ and σ that generated the errors. NEES verdict: the mean over seeds and time "
-             f"against [{lo:.2f}, {hi:.2f}], the 95 % interval of a mean of {len(r.seeds)} χ²(6) values. "
-             f"Experiment time {r.runtime:.1f} s.", "",
-             "| τ [s] | filter | ESKF / raw position APE | pose NEES | mean NEES | verdict |",
-             "|---|---|---|---|---|---|"]
+             f"filter is told the τ and σ that generated the errors. NEES verdict at each pose time: the NEES "
+             f"averaged over the seeds against [{lo:.2f}, {hi:.2f}], the 95 % interval of a mean of "
+             f"{len(r.seeds)} χ²(6) values; a share of times over {VERDICT_SHARE * 100:g} % below (above) it is "
+             f"underconfident (overconfident). Experiment time {r.runtime:.1f} s.", "",
+             "| τ [s] | filter | ESKF / raw position APE | pose NEES | mean NEES | times below / above | verdict |",
+             "|---|---|---|---|---|---|---|"]
     for i, tau in enumerate(r.time_constants):
         for j, remedy in enumerate(r.remedies):
             if tau == 0.0 and j > 0:
@@ -481,7 +483,7 @@ def coloured_noise_rows(excerpt: str = "cruise", time_constants=COLOURED_TAUS, s
             lines.append(f"| {tau:g} | {label} | "
                          f"{r.spread('position_ratio', tau, remedy).text('.2f')} | "
                          f"{r.spread('nees_pose', tau, remedy).text('.1f')} | {r.nees_mean[i, j]:.1f} | "
-                         f"{r.verdict(tau, remedy)} |")
+                         f"{r.band_shares[i, j, 0] * 100:.0f} % / {r.band_shares[i, j, 1] * 100:.0f} % | {r.verdict(tau, remedy)} |")
     return lines
 
 
