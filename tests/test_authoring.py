@@ -139,6 +139,69 @@ def test_build_is_deterministic_and_check_detects_drift(tmp_path):
     assert ex / "99_stray.ipynb" in authoring.build_all(sol, ex, check=True)
 
 
+def _one_chapter(tmp_path):
+    """A solutions folder with one real chapter, built once; (solutions, exercises, the exercise)."""
+    sol, ex = tmp_path / "solutions", tmp_path / "exercises"
+    sol.mkdir()
+    shutil.copy(ROOT / "solutions" / "03_kalman_filter.ipynb", sol)
+    assert authoring.build_all(sol, ex) == [ex / "03_kalman_filter.ipynb"]
+    return sol, ex, ex / "03_kalman_filter.ipynb"
+
+
+def test_a_build_never_overwrites_a_learners_work_without_force(tmp_path):
+    sol, ex, target = _one_chapter(tmp_path)
+    built = target.read_text()
+    assert authoring.written_by_build(built)
+    # the learner fixes a stub and saves; then the instructor's solution changes and build runs
+    mine = built.replace("# fix this", "# fixed by me", 1)
+    target.write_text(mine)
+    assert not authoring.written_by_build(mine)
+    solution = sol / "03_kalman_filter.ipynb"
+    solution.write_text(solution.read_text().replace("Exercise 03", "Exercise 03 (revised)", 1))
+    with pytest.raises(authoring.BuildRefused) as refused:
+        authoring.build_all(sol, ex)
+    assert refused.value.refused == [target] and refused.value.written == []
+    assert target.read_text() == mine and not list(ex.glob("*.bak*"))       # untouched, nothing else written
+    # --force: the new exercise is written, the learner's file kept beside it, twice without loss
+    assert authoring.build_all(sol, ex, force=True) == [target]
+    assert (ex / "03_kalman_filter.ipynb.bak").read_text() == mine
+    assert authoring.written_by_build(target.read_text()) and "(revised)" in target.read_text()
+    target.write_text(mine + " ")                                        # not even valid JSON now
+    assert authoring.build_all(sol, ex, force=True) == [target]
+    assert (ex / "03_kalman_filter.ipynb.bak2").read_text() == mine + " "
+    assert (ex / "03_kalman_filter.ipynb.bak").read_text() == mine
+    assert authoring.build_all(sol, ex, check=True) == []                # backups are not exercises
+
+
+def test_a_build_overwrites_its_own_output_even_resaved_by_another_editor(tmp_path):
+    sol, ex, target = _one_chapter(tmp_path)
+    nb = nbformat.read(target, as_version=4)
+    target.write_text(nbformat.writes(nb, version=4).replace("\n ", "\n  "))     # another indentation, same content
+    assert authoring.written_by_build(target.read_text())
+    solution = sol / "03_kalman_filter.ipynb"
+    solution.write_text(solution.read_text().replace("Exercise 03", "Exercise 03 (revised)", 1))
+    assert authoring.build_all(sol, ex) == [target] and not list(ex.glob("*.bak*"))
+    # an exercise of a build before the digests is the build's too, when it is what that build wrote
+    plain = nbformat.read(target, as_version=4)
+    del plain.metadata["kalman_course"][authoring.BUILD_DIGEST]
+    target.write_text(authoring.notebook_text(plain))
+    assert authoring.build_all(sol, ex) == [target] and not list(ex.glob("*.bak*"))
+
+
+def test_the_build_command_names_the_files_it_left_and_the_way_out(tmp_path, capsys):
+    from kalman_course.tooling import cli
+
+    sol, ex, target = _one_chapter(tmp_path)
+    target.write_text(target.read_text().replace("# fix this", "# fixed by me", 1))
+    solution = sol / "03_kalman_filter.ipynb"
+    solution.write_text(solution.read_text().replace("Exercise 03", "Exercise 03 (revised)", 1))
+    assert cli.main(["build", "--solutions", str(sol), "--exercises", str(ex)]) == 1
+    err = capsys.readouterr().err
+    assert str(target) in err and "--force" in err and ".bak" in err
+    assert cli.main(["build", "--solutions", str(sol), "--exercises", str(ex), "--force"]) == 0
+    assert (ex / "03_kalman_filter.ipynb.bak").exists()
+
+
 def test_exercises_folder_is_in_sync_with_solutions():
     assert authoring.build_all(ROOT / "solutions", ROOT / "exercises", check=True) == [], \
         "exercises/ is out of date: run `kalman-course build`"

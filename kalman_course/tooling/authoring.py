@@ -242,29 +242,109 @@ def build_exercise(solution_path: str | Path):
     return normalise(ex)
 
 
-def build_all(solutions_dir: str | Path, exercises_dir: str | Path, *, check: bool = False) -> list[Path]:
+#: Key of the exercise metadata (under ``kalman_course``) that holds the digest of the
+#: exercise as ``build`` wrote it: a file whose content no longer matches was changed since.
+BUILD_DIGEST = "build_digest"
+
+
+def _content_digest(nb: dict) -> str:
+    """sha256 (16 hex digits) of ``nb`` in the canonical layout, without its build digest."""
+    import hashlib
+
+    nb = copy.deepcopy(nb)
+    nb.get("metadata", {}).get("kalman_course", {}).pop(BUILD_DIGEST, None)
+    return hashlib.sha256(notebook_text(nb).encode("utf-8")).hexdigest()[:16]
+
+
+def _with_build_digest(nb) -> str:
+    """The exercise's text with the digest of its own content recorded in its metadata."""
+    nb.metadata.setdefault("kalman_course", {})[BUILD_DIGEST] = _content_digest(nb)
+    return notebook_text(nb)
+
+
+def written_by_build(text: str) -> bool:
+    """Whether ``text`` (a notebook file's content) is an exercise exactly as ``build`` wrote
+    it: its recorded build digest matches its content (layout aside: an editor that only
+    re-saves it changes nothing that counts)."""
+    import json
+
+    try:
+        nb = json.loads(text)
+        recorded = nb["metadata"]["kalman_course"][BUILD_DIGEST]
+    except (ValueError, KeyError, TypeError):
+        return False
+    try:
+        return recorded == _content_digest(nb)
+    except Exception:  # not a notebook nbformat can write: not the build's
+        return False
+
+
+class BuildRefused(AuthoringError):
+    """Exercises changed since the last build, left as they are; ``.refused`` lists them."""
+
+    def __init__(self, refused: list[Path], written: list[Path]):
+        self.refused, self.written = refused, written
+        names = ", ".join(str(p) for p in refused)
+        super().__init__(f"not overwritten, changed since the last build (your work?): {names}")
+
+
+def _backup_path(target: Path) -> Path:
+    """``NN_name.ipynb.bak``, or ``.bak2``, ``.bak3``, … if taken (never an exercise's name)."""
+    n = 1
+    while True:
+        candidate = target.with_name(target.name + (".bak" if n == 1 else f".bak{n}"))
+        if not candidate.exists():
+            return candidate
+        n += 1
+
+
+def build_all(solutions_dir: str | Path, exercises_dir: str | Path, *, check: bool = False,
+              force: bool = False) -> list[Path]:
     """Write (or, with ``check``, compare) every exercise generated from ``solutions_dir``.
+
+    An exercise file that changed since the build that wrote it (a learner's work: its
+    content no longer matches the build digest in its metadata, or it has none) is not
+    overwritten: the others are written, then :class:`BuildRefused` names it. With
+    ``force`` it is overwritten after a copy is kept beside it (``NN_name.ipynb.bak``,
+    ``.bak2``, …).
 
     Returns
     -------
     list of Path
         The exercise files that were out of date (with ``check``) or rewritten.
+
+    Raises
+    ------
+    BuildRefused
+        If some exercises were left as they are (``.written`` lists what was written).
     """
     solutions_dir, exercises_dir = Path(solutions_dir), Path(exercises_dir)
     sources = sorted(solutions_dir.glob("[0-9][0-9]_*.ipynb"))
     if not sources:
         raise FileNotFoundError(f"no solution notebooks (NN_name.ipynb) in {solutions_dir}")
-    changed = []
+    changed, refused = [], []
     for src in sources:
         target = exercises_dir / src.name
-        text = notebook_text(build_exercise(src))
-        current = target.read_text(encoding="utf-8") if target.exists() else None
-        if current != text:
+        exercise = build_exercise(src)
+        undigested = notebook_text(exercise)      # what a build before the digests wrote
+        text = _with_build_digest(exercise)
+        current = target.read_text(encoding="utf-8", errors="replace") if target.exists() else None
+        if current == text:
+            continue
+        if check:
             changed.append(target)
-            if not check:
-                exercises_dir.mkdir(parents=True, exist_ok=True)
-                target.write_text(text, encoding="utf-8")
+            continue
+        if current is not None and current != undigested and not written_by_build(current):
+            if not force:
+                refused.append(target)
+                continue
+            _backup_path(target).write_text(current, encoding="utf-8")
+        exercises_dir.mkdir(parents=True, exist_ok=True)
+        target.write_text(text, encoding="utf-8")
+        changed.append(target)
     if check:
         expected = {exercises_dir / s.name for s in sources}
         changed.extend(sorted(p for p in exercises_dir.glob("[0-9][0-9]_*.ipynb") if p not in expected))
+    if refused:
+        raise BuildRefused(refused, changed)
     return changed

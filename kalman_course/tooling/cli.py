@@ -56,9 +56,20 @@ def grading_summary(line: str) -> str:
 
 
 def _cmd_build(args: argparse.Namespace) -> int:
-    from kalman_course.tooling.authoring import build_all
+    from kalman_course.tooling.authoring import BuildRefused, build_all
 
-    changed = build_all(args.solutions, args.exercises, check=args.check)
+    try:
+        changed = build_all(args.solutions, args.exercises, check=args.check, force=args.force)
+    except BuildRefused as refused:
+        for path in refused.written:
+            print(f"wrote {path}")
+        print("error: these exercises changed since the last build wrote them (your work?); they were left as "
+              "they are:", file=sys.stderr)
+        for path in refused.refused:
+            print(f"  {path}", file=sys.stderr)
+        print("copy your work elsewhere, or run `kalman-course build --force` to overwrite them and keep each "
+              "as NN_name.ipynb.bak beside it", file=sys.stderr)
+        return 1
     if args.check:
         if changed:
             print("exercises/ is out of sync with solutions/; run `kalman-course build`:", file=sys.stderr)
@@ -375,6 +386,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--solutions", default="solutions", help="folder of solution notebooks (default solutions)")
     p.add_argument("--exercises", default="exercises", help="folder to write exercises to (default exercises)")
     p.add_argument("--check", action="store_true", help="write nothing; exit 1 if exercises/ is out of sync")
+    p.add_argument("--force", action="store_true",
+                   help="also overwrite exercises changed since the last build, keeping each as NN_name.ipynb.bak")
     p.set_defaults(func=_cmd_build)
 
     p = sub.add_parser("grade", help="grade exercise notebooks and print a points table")
