@@ -113,3 +113,48 @@ def test_bad_format_is_refused(tmp_path, capsys):
     assert cli.main(["export", "derivations", "--to", "pdf", "-o", str(tmp_path)]) == 2
     assert cli.main(["export", "notebooks", "--to", "tex", "-o", str(tmp_path)]) == 2
     assert "--to" in capsys.readouterr().err
+
+
+def test_an_export_never_replaces_a_file_it_did_not_write(tmp_path, capsys):
+    out = tmp_path / "handouts"
+    out.mkdir()
+    mine = out / "derivations.md"
+    mine.write_text("my own notes\n")
+    assert cli.main(["export", "derivations", "--to", "md", "-o", str(out)]) == 2
+    assert str(mine) in capsys.readouterr().err and mine.read_text() == "my own notes\n"
+    # a file the export wrote is replaced by the next export, and carries the mark to say so
+    mine.unlink()
+    assert cli.main(["export", "derivations", "--to", "md", "-o", str(out)]) == 0
+    first = mine.read_text()
+    assert export.MARK in first.splitlines()[0] and first.splitlines()[1] == "# kalman-course: derivations"
+    assert cli.main(["export", "derivations", "--to", "md", "-o", str(out)]) == 0
+    assert mine.read_text() == first
+    # a folder where the file would go is the user's too
+    (out / "derivations.tex").mkdir()
+    with pytest.raises(FileExistsError, match="derivations.tex"):
+        export.export_derivations("tex", out)
+
+
+def test_pages_are_named_uniquely_and_a_users_index_is_kept(tmp_path, capsys):
+    lecture = ROOT / "notebooks" / "A1_notation_glossary.ipynb"
+    for folder, name in (("a", "n"), ("b", "n"), ("c", "index")):
+        (tmp_path / folder).mkdir()
+        shutil.copy(lecture, tmp_path / folder / f"{name}.ipynb")
+    notebooks = [tmp_path / "a" / "n.ipynb", tmp_path / "b" / "n.ipynb", tmp_path / "c" / "index.ipynb"]
+    assert export.page_names(notebooks) == ["a-n.html", "b-n.html", "c-index.html"]
+    assert export.page_names([tmp_path / "a" / "n.ipynb"]) == ["n.html"]
+    with pytest.raises(ValueError, match="different files"):
+        export.page_names([notebooks[0], notebooks[0]])
+    site = tmp_path / "site"
+    assert cli.main(["export", "notebooks", "--to", "html", "-o", str(site), *map(str, notebooks)]) == 0
+    assert sorted(p.name for p in site.glob("*.html")) == ["a-n.html", "b-n.html", "c-index.html", "index.html"]
+    page = (site / "a-n.html").read_text()
+    assert page.startswith("<!DOCTYPE html>\n<!-- " + export.MARK)
+    # the user's own index.html in the output folder: refused before anything is written
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "index.html").write_text("<p>my page</p>")
+    capsys.readouterr()
+    assert cli.main(["export", "notebooks", "--to", "html", "-o", str(other), *map(str, notebooks)]) == 2
+    assert "index.html" in capsys.readouterr().err
+    assert [p.name for p in other.iterdir()] == ["index.html"] and (other / "index.html").read_text() == "<p>my page</p>"

@@ -308,7 +308,11 @@ def _cmd_export(args: argparse.Namespace) -> int:
             print("error: derivations export --to tex (handout), beamer (slides) or md", file=sys.stderr)
             return 2
         print("building and proving every derivation with SymPy (about ten seconds) ...", flush=True)
-        paths = [export.export_derivations(args.to, args.output)]
+        try:
+            paths = [export.export_derivations(args.to, args.output)]
+        except FileExistsError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
     else:
         if args.to != "html":
             print("error: notebooks export --to html", file=sys.stderr)
@@ -321,7 +325,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
         try:
             paths = export.export_notebooks_html(
                 notebooks, args.output, progress=lambda i, n, p: print(f"[{i}/{n}] wrote {p}", flush=True))
-        except FileNotFoundError as exc:
+        except (FileNotFoundError, FileExistsError, ValueError) as exc:
             print(f"error: {exc}", file=sys.stderr)
             return 2
     for path in paths[:1]:

@@ -15,6 +15,41 @@ from pathlib import Path
 
 REMOTE_SCRIPT_RE = re.compile(r'<script[^>]*src="https?://[^"]*"[^>]*>\s*</script>\s*')
 
+#: Every file the export writes carries this line near its top (a TeX, Markdown or HTML
+#: comment), so that a later export may replace it; a file without it is the user's.
+MARK = "written by kalman-course export; a later export replaces it"
+_MARK_SPAN = 512      # the mark is within the first line or two: only this much is read
+_COMMENTS = {".tex": "% {}\n", ".md": "<!-- {} -->\n", ".html": "<!-- {} -->\n"}
+
+
+def _marked(path: Path, text: str) -> str:
+    """``text`` with :data:`MARK` as a comment at its top (after an HTML page's doctype line)."""
+    comment = _COMMENTS[path.suffix].format(MARK)
+    if text.startswith("<!DOCTYPE"):
+        doctype, _, rest = text.partition("\n")
+        return f"{doctype}\n{comment}{rest}"
+    return comment + text
+
+
+def refuse_foreign(paths) -> None:
+    """Raise FileExistsError naming the first of ``paths`` that exists and was not written by
+    the export (a folder, or a file without :data:`MARK`): nothing of the user's is replaced."""
+    for path in paths:
+        path = Path(path)
+        if not path.exists() and not path.is_symlink():
+            continue
+        own = False
+        if path.is_file() and not path.is_symlink():
+            with open(path, encoding="utf-8", errors="replace") as fh:
+                own = MARK in fh.read(_MARK_SPAN)
+        if not own:
+            raise FileExistsError(f"{path} exists and was not written by kalman-course export: not replaced "
+                                  "(move it, or export to another folder with -o); nothing was written")
+
+
+def _write(path: Path, text: str) -> None:
+    path.write_text(_marked(path, text), encoding="utf-8")
+
 KIND_NOTE = {
     "definition": "definition",
     "identity": "identity, proved by SymPy",
@@ -142,10 +177,11 @@ def export_derivations(fmt: str, out_dir: str | Path) -> Path:
     if fmt not in ("tex", "md", "beamer"):
         raise ValueError(f"fmt must be 'tex', 'beamer' or 'md', got {fmt!r}")
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    text = {"tex": derivations_latex, "beamer": derivations_beamer, "md": derivations_markdown}[fmt](all_derivations())
     path = out_dir / ("derivation-slides.tex" if fmt == "beamer" else f"derivations.{fmt}")
-    path.write_text(text, encoding="utf-8")
+    refuse_foreign([path])
+    text = {"tex": derivations_latex, "beamer": derivations_beamer, "md": derivations_markdown}[fmt](all_derivations())
+    out_dir.mkdir(parents=True, exist_ok=True)
+    _write(path, text)
     return path
 
 
@@ -205,8 +241,35 @@ def _nav(pages: list[tuple[Path, str]], i: int, where: str) -> str:
             f'<a href="index.html">course index</a>{link(i + 1, "", " →")}</nav>')
 
 
+def page_names(notebooks) -> list[str]:
+    """One HTML file name per notebook, all different and none ``index.html``: the stem,
+    or, where stems repeat (``a/n.ipynb``, ``b/n.ipynb``) or one is ``index``, the stem
+    prefixed by as many of its parent folders as make it unique (``a-n.html``)."""
+    paths = [Path(p).resolve() for p in notebooks]
+    depth = [0] * len(paths)
+
+    def name(i):
+        parts = paths[i].parent.parts[len(paths[i].parent.parts) - depth[i]:] if depth[i] else ()
+        return "-".join([*parts, paths[i].stem]) + ".html"
+
+    while True:
+        names = [name(i) for i in range(len(paths))]
+        clash = [i for i, n in enumerate(names)
+                 if n == "index.html" or names.count(n) > 1]
+        deeper = [i for i in clash if depth[i] < len(paths[i].parent.parts)]
+        if not clash:
+            return names
+        if not deeper:   # the same notebook twice, or nothing left to tell them apart
+            raise ValueError(f"notebooks must be different files, got {notebooks[clash[0]]} twice")
+        for i in deeper:
+            depth[i] += 1
+
+
 def export_notebooks_html(notebooks: list[Path], out_dir: str | Path, progress=None) -> list[Path]:
     """Write each notebook as an HTML page using a local MathJax, plus ``index.html``.
+
+    Page names come from :func:`page_names`. Nothing is written if a page or the index would
+    replace a file the export did not write (:func:`refuse_foreign`).
 
     The pages form a small site in the order given: each has previous / index / next links
     at its top and bottom, and the index lists every page's title with the first sentence
@@ -216,6 +279,8 @@ def export_notebooks_html(notebooks: list[Path], out_dir: str | Path, progress=N
     from nbconvert import HTMLExporter
 
     out_dir = Path(out_dir)
+    names = page_names(notebooks)
+    refuse_foreign([out_dir / "index.html", *(out_dir / name for name in names)])
     out_dir.mkdir(parents=True, exist_ok=True)
     target = out_dir / "mathjax"
     if not (target / "MathJax.js").is_file():
@@ -223,8 +288,8 @@ def export_notebooks_html(notebooks: list[Path], out_dir: str | Path, progress=N
     exporter = HTMLExporter(template_name="lab")
     exporter.mathjax_url = "mathjax/MathJax.js?config=TeX-AMS-MML_HTMLorMML-full"
     nbs = [nbformat.read(str(path), as_version=4) for path in notebooks]
-    pages = [(out_dir / f"{Path(path).stem}.html", notebook_title_and_summary(nb)[0] or Path(path).stem)
-             for path, nb in zip(notebooks, nbs)]
+    pages = [(out_dir / name, notebook_title_and_summary(nb)[0] or Path(path).stem)
+             for name, path, nb in zip(names, notebooks, nbs)]
     written = []
     for i, (nb_path, nb) in enumerate(zip(notebooks, nbs)):
         body, _ = exporter.from_notebook_node(nb, resources={"metadata": {"path": str(Path(nb_path).parent)}})
@@ -235,7 +300,7 @@ def export_notebooks_html(notebooks: list[Path], out_dir: str | Path, progress=N
         body = re.sub(r"(<body[^>]*>)", lambda m: m.group(1) + _nav(pages, i, "top"), body, count=1)
         body = body.replace("</body>", _nav(pages, i, "bottom") + "\n</body>", 1)
         page = pages[i][0]
-        page.write_text(body, encoding="utf-8")
+        _write(page, body)
         written.append(page)
         if progress:
             progress(i + 1, len(notebooks), page)
@@ -243,7 +308,7 @@ def export_notebooks_html(notebooks: list[Path], out_dir: str | Path, progress=N
                       f'<br><span class="kc-summary">{html.escape(notebook_title_and_summary(nb)[1])}</span></li>'
                       for (page, title), nb in zip(pages, nbs))
     index = out_dir / "index.html"
-    index.write_text("<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\">"
+    _write(index, "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\">"
                      "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">"
                      f"<title>kalman-course</title>\n{SITE_STYLE}\n"
                      # the summaries' inline maths, typeset by the same local MathJax as the pages
@@ -253,5 +318,5 @@ def export_notebooks_html(notebooks: list[Path], out_dir: str | Path, progress=N
                      "<body class=\"kc-index\"><h1>kalman-course</h1>\n"
                      "<p>A Kalman-filtering course: every derivation shown and checked by code, from Bayes' "
                      "rule to an error-state filter on KITTI.</p>\n"
-                     f"<ol>\n{items}\n</ol></body></html>\n", encoding="utf-8")
+                     f"<ol>\n{items}\n</ol></body></html>\n")
     return [index, *written]
