@@ -291,3 +291,20 @@ def test_a_nan_observation_no_longer_poisons_the_run_silently(turns):
         eskf.run(ex.imu, s0, "kitti_lidar", ex.gravity, lidar=bad, start=k0)
     good = eskf.run(ex.imu, s0, "kitti_lidar", ex.gravity, lidar=ex.lidar, start=k0, t_end=ex.imu.t[k0] + 5.0)
     assert np.isfinite(good.position).all() and np.isfinite(good.P).all()
+
+
+def test_an_indefinite_process_or_observation_noise_is_refused():
+    # symmetric, positive diagonal, one negative eigenvalue: it would make P indefinite
+    P, F, B = np.eye(15), np.eye(15), np.eye(15)[:, :6]
+    Q = np.eye(6)
+    Q[0, 1] = Q[1, 0] = 2.0
+    with pytest.raises(ValueError, match="Q must be positive semi-definite"):
+        eskf.propagate_covariance(P, F, B, Q)
+    G, K = np.eye(15)[:3], np.zeros((15, 3))
+    R = np.eye(3)
+    R[0, 2] = R[2, 0] = 1.5
+    with pytest.raises(ValueError, match="R must be positive semi-definite"):
+        eskf.update_covariance(P, K, G, R)
+    # a singular R (a component known exactly) and Q are fine
+    assert np.isfinite(eskf.update_covariance(P, K, G, np.diag([1.0, 0.0, 1.0]))).all()
+    assert np.isfinite(eskf.propagate_covariance(P, F, B, np.zeros((6, 6)))).all()

@@ -735,17 +735,48 @@ def test_the_textbook_short_form_fails_where_the_whitened_one_does_not():
 
 
 def test_beyond_the_short_forms_range_the_joseph_form_stays_accurate():
-    """The documented limit of the default form: a prior of variance 1e6 meeting fixes of
-    variance 1e-10 (cond(P̌) ≈ 1e16). Any short form resolves P̂ only to ε‖P̌‖ ≈ 2e-10, the
-    size of its smallest eigenvalues, and misses them; the Joseph form does not."""
+    """Why the Joseph form is the default: a prior of variance 1e6 meeting fixes of variance
+    1e-10 (cond(P̌) ≈ 1e16). Any short form resolves P̂ only to ε‖P̌‖ ≈ 2e-10, the size of
+    its smallest eigenvalues, and misses them; the Joseph form does not."""
     sys = constant_acceleration_two_sensors(p0=1e6, r=1e-10, lean=1e-4)
     x_ref, P_ref, P_check = reference_kf(sys)
     assert conditioning(sys, P_check)[1] > 1e15
-    joseph = run_kf(**sys, joseph=True)
-    assert state_error(joseph.x_hat, x_ref) <= STATE_TOL
-    assert smallest_eigenvalue_error(joseph.P_hat, P_ref) <= EIGEN_TOL
-    short = run_kf(**sys)
+    default = run_kf(**sys)
+    assert np.array_equal(default.P_hat, run_kf(**sys, joseph=True).P_hat)
+    assert state_error(default.x_hat, x_ref) <= STATE_TOL
+    assert smallest_eigenvalue_error(default.P_hat, P_ref) <= EIGEN_TOL
+    short = run_kf(**sys, joseph=False)
     assert smallest_eigenvalue_error(short.P_hat, P_ref) > 10 * EIGEN_TOL
+
+
+def test_the_default_update_keeps_a_variance_shrunk_by_1e18():
+    # a prior of 1e8 meeting a measurement of variance 1e-10: the exact posterior variance is
+    # (1/1e8 + 1/1e-10)⁻¹, computed here in 50-digit arithmetic
+    mp = pytest.importorskip("mpmath")
+    mp.mp.dps = 50
+    exact = float(1 / (1 / mp.mpf("1e8") + 1 / mp.mpf("1e-10")))
+    G, R = np.array([[1.0, 0.0]]), np.array([[1e-10]])
+    for update in (lambda P: kf_update([0.0, 1.0], P, [1.0], G, R).P_hat,
+                   lambda P: run_kf([0.0, 1.0], P, np.eye(2), np.zeros((2, 2)), G, R, np.array([[1.0]])).P_hat[0]):
+        P_hat = update(np.diag([1e8, 1e-6]))
+        assert abs(P_hat[0, 0] - exact) <= 4 * np.finfo(float).eps * exact, P_hat
+        assert P_hat[1, 1] == 1e-6 and P_hat[0, 1] == 0.0
+    assert kf_update([0.0, 1.0], np.diag([1e8, 1e-6]), [1.0], G, R, joseph=False).P_hat[0, 0] == 0.0  # the short form
+
+
+def test_a_step_whose_result_overflows_raises_instead_of_passing_inf_on():
+    # P̂ = diag(1e306, 1) is a valid covariance; F P̂ Fᵀ with F = 10 I overflows float64
+    x, P, F, Q = np.zeros(2), np.diag([1e306, 1.0]), 10.0 * np.eye(2), np.eye(2)
+    with pytest.raises(ValueError, match="kf_predict: P_check overflowed"), \
+            np.errstate(over="ignore", invalid="ignore"):
+        kf_predict(x, P, F, Q)
+    with pytest.raises(ValueError, match=r"run_kf, step 1: (x_hat|P_hat) overflowed"), \
+            np.errstate(over="ignore", invalid="ignore"):
+        run_kf(x, P, F, Q, np.array([[0.0, 1.0]]), np.eye(1), np.ones((3, 1)))
+    # and an update whose gain meets an overflowing prior cannot hand a NaN on either
+    with pytest.raises(ValueError, match="kf_update: (x_hat|P_hat) overflowed"), \
+            np.errstate(over="ignore", invalid="ignore"):
+        kf_update(x, np.diag([1.7e308, 1.0]), [1e10], np.array([[1e10, 0.0]]), np.eye(1))
 
 
 # --------------------------------------------------------------------------------------

@@ -48,8 +48,8 @@ from numpy import dot
 from kalman_course.core.angles import wrap_angle
 from kalman_course.core.linalg import (gain, innovation_covariance, joseph_update, predict_covariance,
                                         short_update)
-from kalman_course.core.validation import (as_covariance, as_matrix, as_observation_noise, as_process_noise,
-                                           as_vector)
+from kalman_course.core.validation import (as_covariance, as_flag, as_matrix, as_observation_noise,
+                                           as_process_noise, as_vector)
 from kalman_course.filters.kf import KFUpdate
 
 __all__ = [
@@ -224,7 +224,7 @@ def _innovation(residual, y, g, x, at: str, m: int) -> np.ndarray:
     return as_vector(residual(y, y_pred), f"residual(y, g({at}))", m)
 
 
-def ekf_update(x_check, P_check, y, g: Callable, G, R, C=None, residual=None, joseph=False):
+def ekf_update(x_check, P_check, y, g: Callable, G, R, C=None, residual=None, joseph=True):
     """EKF update: linearise g at the prior mean and apply the Kalman update.
 
     Parameters
@@ -246,8 +246,10 @@ def ekf_update(x_check, P_check, y, g: Callable, G, R, C=None, residual=None, jo
     residual : callable, optional
         ``residual(y, y_pred) -> (m,)``; default ``y − y_pred``. Use
         :func:`radar_residual` for measurements with a bearing.
-    joseph : bool, default False
-        Joseph form of the covariance update.
+    joseph : bool, default True
+        Joseph form of the covariance update (accurate where an update shrinks a variance by
+        many orders of magnitude: :func:`kalman_course.filters.kf.kf_update`); False: the
+        short form (I − K G) P̌.
 
     Returns
     -------
@@ -269,12 +271,12 @@ def ekf_update(x_check, P_check, y, g: Callable, G, R, C=None, residual=None, jo
     S = innovation_covariance(GP, Gm, CRCt)                # S = G P̌ Gᵀ + C R Cᵀ
     K = gain(GP, S)                                        # K = P̌ Gᵀ S⁻¹
     x_hat = x_check + dot(K, innovation)                   # x̂ = x̌ + K r(y, g(x̌))
-    P_hat = joseph_update(P_check, K, Gm, CRCt) if joseph else short_update(P_check, K, GP)
+    P_hat = joseph_update(P_check, K, Gm, CRCt) if as_flag(joseph, "joseph") else short_update(P_check, K, GP)
     return KFUpdate(x_hat, P_hat, innovation, S, K)
 
 
 def iekf_update(x_check, P_check, y, g: Callable, G: Callable, R, C=None, residual=None,
-                tol: float = 1e-9, max_iter: int = 20, joseph=False) -> IEKFUpdate:
+                tol: float = 1e-9, max_iter: int = 20, joseph=True) -> IEKFUpdate:
     """Iterated EKF update (Gauss–Newton on the measurement).
 
     Starting from :math:`x_0 = \\check x`, each iteration linearises g at the newest
@@ -286,7 +288,8 @@ def iekf_update(x_check, P_check, y, g: Callable, G: Callable, R, C=None, residu
         \\quad K_i = \\check P G_i^T (G_i \\check P G_i^T + C R C^T)^{-1}.
 
     It stops when :math:`\\max |x_{i+1} - x_i| \\le` ``tol`` or after ``max_iter``
-    linearisations; then :math:`\\hat P = (I - K_i G_i) \\check P` with the last K, G.
+    linearisations; then P̂ from the last K, G (the Joseph form by default, as in
+    :func:`ekf_update`).
     With ``max_iter=1`` this is exactly :func:`ekf_update`.
 
     Parameters
@@ -336,5 +339,5 @@ def iekf_update(x_check, P_check, y, g: Callable, G: Callable, R, C=None, residu
         if step <= tol:
             converged = True
             break
-    P_hat = joseph_update(P_check, K, Gm, CRCt) if joseph else short_update(P_check, K, GP)
+    P_hat = joseph_update(P_check, K, Gm, CRCt) if as_flag(joseph, "joseph") else short_update(P_check, K, GP)
     return IEKFUpdate(x_op, P_hat, innovation, S, K, iteration, converged)

@@ -490,12 +490,12 @@ def propagate_covariance(P, F, B, Q) -> np.ndarray:
     F : array_like, shape (15, 15)
     B : array_like, shape (15, k)
     Q : array_like, shape (k, k)
-        Symmetric.
+        Symmetric positive semi-definite (an indefinite Q would make P̌ indefinite).
     """
     P = as_covariance(P, "P", 15, psd=True)
     F = as_matrix(F, "F", (15, 15))
     B = as_matrix(B, "B", (15, None))
-    Q = as_covariance(Q, "Q", B.shape[1])
+    Q = as_covariance(Q, "Q", B.shape[1], psd=True)
     return _propagate_covariance(P, F[None], B[None], Q[None])[0]
 
 
@@ -537,13 +537,14 @@ def kalman_gain(P, G, R) -> np.ndarray:
 def update_covariance(P, K, G, R) -> np.ndarray:
     """Joseph form P̂ = (I − K G) P̌ (I − K G)ᵀ + K R Kᵀ, returned exactly symmetric.
 
-    ``P`` (n, n), ``K`` (n, m), ``G`` (m, n), ``R`` (m, m); valid for any gain K.
+    ``P`` (n, n), ``K`` (n, m), ``G`` (m, n), ``R`` (m, m) positive semi-definite (singular
+    where a component is known exactly); valid for any gain K.
     """
     P = as_covariance(P, "P", psd=True)
     n = P.shape[0]
     G = as_matrix(G, "G", (None, n))
     K = as_matrix(K, "K", (n, G.shape[0]))
-    R = as_covariance(R, "R", G.shape[0])
+    R = as_covariance(R, "R", G.shape[0], psd=True)
     return joseph_update(P, K, G, R)
 
 

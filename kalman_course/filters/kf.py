@@ -29,11 +29,13 @@ explicit S⁻¹, whose gain is not backward stable and turns an ill-conditioned 
 indefinite P̂ (see :func:`kalman_course.core.linalg.whitened_gain`). The standard form
 :math:`\\hat P = (I - K G) \\check P` is computed as :math:`\\check P - Z^T Z` with
 :math:`Z = L^{-1} G \\check P`, whose round-off is of order ε‖P̌‖ whatever cond(S) is.
-The Joseph form (``joseph=True``) stays accurate further: where one update shrinks a
-variance by more than about 1e12 (a vague prior meeting a very precise sensor), ε‖P̌‖ is
-no longer small against P̂'s smallest eigenvalues. ``tests/test_kf.py`` checks both
-forms against 50-digit arithmetic on models with cond(S) and cond(P̌) up to 3e12, and
-the Joseph form also at cond(P̌) 1e16.
+The Joseph form, the default (``joseph=True``), stays accurate further: where one update
+shrinks a variance by more than about 1e12 (a vague prior meeting a very precise sensor),
+ε‖P̌‖ is no longer small against P̂'s smallest eigenvalues, and the standard form
+(``joseph=False``) returns them as 0 or worse. ``tests/test_kf.py`` checks both forms
+against 50-digit arithmetic on models with cond(S) and cond(P̌) up to 3e12, and the Joseph
+form also at cond(P̌) 1e16 and on a variance shrunk by 1e18. A step whose result overflows
+(a covariance too large for float64) raises instead of returning inf or NaN.
 """
 
 from __future__ import annotations
@@ -240,6 +242,15 @@ def _returned(value):
     return value
 
 
+def _finite(step: str, **results):
+    """Raise if a step's result overflowed: finite inputs can still give inf (a covariance
+    near 1e308 squared by F), and an inf or NaN must never reach the next step unnoticed."""
+    for name, value in results.items():
+        if not np.isfinite(value).all():
+            raise ValueError(f"{step}: {name} overflowed (inf or NaN from finite inputs; its entries exceed "
+                             f"float64's range, about 1e308): rescale the state's units or its covariance")
+
+
 def _identity(n):
     """The (n, n) identity, made once per n and read-only."""
     I = _IDENTITY.get(n)
@@ -299,6 +310,7 @@ def kf_predict(x_hat, P_hat, F, Q, B=None, v=None):
     if v is not None:
         v = as_vector(v, "v", n)
     x_check, P_check = _predict(x_hat, P_hat, F, BQBt, v)
+    _finite("kf_predict", x_check=x_check, P_check=P_check)
     return _returned(x_check), _returned(P_check)
 
 
@@ -371,7 +383,7 @@ def kf_gain(P_check, G, S):
     return linalg.gain(G.dot(P_check), S)
 
 
-def kf_update(x_check, P_check, y, G, R, C=None, joseph=False):
+def kf_update(x_check, P_check, y, G, R, C=None, joseph=True):
     """Kalman update: condition the prior on the measurement y.
 
     .. math::
@@ -379,17 +391,18 @@ def kf_update(x_check, P_check, y, G, R, C=None, joseph=False):
         e = y - G \\check x, \\quad S = G \\check P G^T + C R C^T, \\quad
         K = \\check P G^T S^{-1}, \\quad \\hat x = \\check x + K e,
 
-    and either the standard form :math:`\\hat P = (I - K G) \\check P` or the Joseph form
-    :math:`\\hat P = (I - K G) \\check P (I - K G)^T + K C R C^T K^T`, which stays
-    symmetric positive semi-definite even for a sub-optimal K. Both are symmetrised.
+    and either the Joseph form :math:`\\hat P = (I - K G) \\check P (I - K G)^T + K C R C^T K^T`
+    (the default), which stays symmetric positive semi-definite even for a sub-optimal K, or
+    the standard form :math:`\\hat P = (I - K G) \\check P`. Both are symmetrised.
 
     K is solved with the Cholesky factor L of S (S = L Lᵀ), and the standard form is
     computed as :math:`\\check P - Z^T Z` with :math:`Z = L^{-1} G \\check P` (equal to
     :math:`K G \\check P`): its round-off is of order ε‖P̌‖ however ill-conditioned S is.
-    Prefer ``joseph=True`` when one update shrinks a variance by more than about 1e12;
-    there ε‖P̌‖ is a sizeable part of P̂'s smallest eigenvalues, while the Joseph form's
-    round-off scales with P̂. (If S has no Cholesky factor in float64, K comes from an LU
-    solve and P̂ from the Joseph form.)
+    That is why the Joseph form, whose round-off scales with P̂, is the default: where one
+    update shrinks a variance by more than about 1e12, ε‖P̌‖ is a sizeable part of P̂'s
+    smallest eigenvalues (a prior of 1e8 meeting a measurement of variance 1e-10 gives 0
+    in the standard form, 1e-10 in the Joseph form). (If S has no Cholesky factor in
+    float64, K comes from an LU solve and P̂ from the Joseph form.)
 
     Parameters
     ----------
@@ -406,8 +419,9 @@ def kf_update(x_check, P_check, y, G, R, C=None, joseph=False):
         None, else (r, r).
     C : array_like, shape (m, r), optional
         Observation-noise Jacobian; None means the identity.
-    joseph : bool, default False
-        Use the Joseph form for the posterior covariance (see above for when it matters).
+    joseph : bool, default True
+        The Joseph form for the posterior covariance; False: the standard form (see above
+        for when it matters).
 
     Returns
     -------
@@ -433,6 +447,7 @@ def kf_update(x_check, P_check, y, G, R, C=None, joseph=False):
     CRCt = _validated_model("R", R, C, m, as_observation_noise)
     joseph = as_flag(joseph, "joseph")
     x_hat, P_hat, innovation, S, K = _update(x_check, P_check, y, G, CRCt, joseph, _identity(n))
+    _finite("kf_update", x_hat=x_hat, P_hat=P_hat)
     return KFUpdate(_returned(x_hat), _returned(P_hat), innovation, S, K)
 
 
@@ -440,7 +455,7 @@ def kf_update(x_check, P_check, y, G, R, C=None, joseph=False):
 # the runner
 # ---------------------------------------------------------------------------------------
 
-def run_kf(x0, P0, F, Q, G, R, ys, *, B=None, vs=None, joseph=False):
+def run_kf(x0, P0, F, Q, G, R, ys, *, B=None, vs=None, joseph=True):
     """Run the Kalman filter over a sequence of measurements and record every step.
 
     Convention (as in the lecture): ``x0, P0`` are the *prior* at step 0, so step 0 is an
@@ -473,8 +488,8 @@ def run_kf(x0, P0, F, Q, G, R, ys, *, B=None, vs=None, joseph=False):
     vs : array_like, shape (N, n), optional
         Known inputs in state space: ``vs[k]`` is added in the prediction of step k.
         ``vs[0]`` is not used (there is no prediction at step 0).
-    joseph : bool, default False
-        Use the Joseph form of the covariance update; the standard form is computed as in
+    joseph : bool, default True
+        The Joseph form of the covariance update; False: the standard form, computed as in
         :func:`kf_update`, which says when the Joseph form is the accurate choice.
 
     Returns
@@ -536,5 +551,8 @@ def run_kf(x0, P0, F, Q, G, R, ys, *, B=None, vs=None, joseph=False):
             P_hat[k] = P
         x_hat[k] = x
 
+    bad = ~(np.isfinite(P_hat).all(axis=(1, 2)) & np.isfinite(x_hat).all(axis=1))
+    if bad.any():
+        _finite(f"run_kf, step {int(np.argmax(bad))}", x_hat=x_hat[bad][0], P_hat=P_hat[bad][0])
     return KFHistory(x_check=x_check, P_check=P_check, x_hat=x_hat, P_hat=P_hat,
                      innovation=innovation, S=S, K=K)
