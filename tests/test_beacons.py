@@ -80,3 +80,9 @@ def test_runs_over_seeds_are_the_single_runs_of_each_seed():
     assert not np.array_equal(runs[0].nees, runs[1].nees)
     with pytest.raises(ValueError, match="seeds"):
         beacons.runs_over_seeds([])
+
+
+def test_iterated_given_as_text_is_refused():
+    sc = beacons.kitti_beacons("turns", 1)
+    with pytest.raises(ValueError, match="iterated must be True or False"):
+        beacons.run_beacon_filter(sc, iterated="no")

@@ -84,3 +84,6 @@ def test_replace_changes_fields_and_si_values():
         cfg.replace(process__radar=1.0)
     with pytest.raises(ValueError, match="bias_model"):
         cfg.replace(bias_model="none")
+    for text in ("false", "no", 0):                      # a YAML-looking string is not a bool
+        with pytest.raises(ValueError, match="exact_reset must be True or False"):
+            cfg.replace(exact_reset=text)

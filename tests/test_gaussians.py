@@ -263,6 +263,17 @@ def test_schur_and_block_inverse_against_numpy(p, k, symmetric):
     np.testing.assert_allclose(np.linalg.inv(Minv[:k, :k]), schur_complement(M, k), rtol=1e-10)
 
 
+@pytest.mark.parametrize("k", [1, 2, 3])
+def test_block_inverse_of_a_well_conditioned_matrix_with_a_nearly_singular_block(k):
+    # cond(M) ≈ 7 while one diagonal block has cond 2e15 (D for k = 2): solving with that
+    # block would lose every digit; pivoting on the other keeps float64 round-off
+    M = np.array([[1.0, 0.0, 1.0, 0.0], [0.0, 1.0, 0.0, 1.0], [1.0, 0.0, 1e-15, 0.0], [0.0, 1.0, 0.0, 2.0]])
+    assert np.linalg.cond(M) < 10
+    for matrix in (M, M[::-1, ::-1]):                     # the nearly singular block below, then above
+        exact = np.linalg.inv(matrix)
+        np.testing.assert_allclose(block_inverse(matrix, k), exact, rtol=0, atol=1e-14 * np.abs(exact).max())
+
+
 def test_block_inverse_hand_value():
     M = np.array([[4.0, 2.0], [1.0, 3.0]])          # det 10
     np.testing.assert_allclose(block_inverse(M, 1), np.array([[3.0, -2.0], [-1.0, 4.0]]) / 10)

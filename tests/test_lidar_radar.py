@@ -245,3 +245,12 @@ def test_kitti_ctrv_beats_raw_gnss():
         assert res.ekf_rmse < 0.9 * res.gnss_rmse, name
         distance = np.linalg.norm(res.x_hat[:, :2] - res.truth_xy, axis=1)
         assert res.ekf_rmse_all == pytest.approx(np.sqrt(np.mean(distance**2)), rel=1e-12)
+
+
+@pytest.mark.parametrize("flag", ["use_lidar", "use_radar", "iterated", "joseph"])
+def test_a_switch_given_as_text_or_a_number_is_refused(flag):
+    # 'False' is a non-empty string, hence true: it must not switch a sensor on silently
+    sc = lidar_radar.ctrv_lidar_radar(seed=0, duration=1.0)
+    for value in ("False", "no", 0, 1):
+        with pytest.raises(ValueError, match=f"{flag} must be True or False"):
+            lidar_radar.fuse_lidar_radar(sc, **{flag: value})

@@ -24,7 +24,7 @@ import numpy as np
 
 from kalman_course import symbolic
 from kalman_course.core.angles import wrap_angle
-from kalman_course.core.validation import as_matrix, as_scalar, as_seed, as_vector
+from kalman_course.core.validation import as_flag, as_matrix, as_scalar, as_seed, as_vector
 from kalman_course.data import load_kitti
 from kalman_course.evaluation.metrics import nees, position_rmse
 from kalman_course.filters.ekf import ekf_predict, ekf_update, iekf_update
@@ -251,6 +251,7 @@ def run_beacon_filter(scenario: BeaconScenario, *, iterated=False, sigma_a=2.0, 
     BeaconResult
     """
     sigma_a = as_scalar(sigma_a, "sigma_a", allow_zero=True)
+    iterated = as_flag(iterated, "iterated")
     x, P = scenario.x0.copy(), scenario.P0.copy()
     N = len(scenario.t)
     xs, Ps, its = np.empty((N, 4)), np.empty((N, 4, 4)), np.ones(N, dtype=int)

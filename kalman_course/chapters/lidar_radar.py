@@ -32,7 +32,7 @@ import numpy as np
 from kalman_course import symbolic
 from kalman_course.core.angles import wrap_angle
 from kalman_course.core.linalg import symmetrise
-from kalman_course.core.validation import as_covariance, as_scalar, as_seed, as_vector
+from kalman_course.core.validation import as_covariance, as_flag, as_scalar, as_seed, as_vector
 from kalman_course.data.kitti import simulate_gnss
 from kalman_course.evaluation.metrics import nees, position_rmse, rmse
 from kalman_course.filters.ekf import (LIDAR_G, ekf_predict, ekf_update, iekf_update, lidar_observation,
@@ -594,6 +594,8 @@ def fuse_lidar_radar(scenario: CTRVScenario, sigma_a=None, sigma_yaw_acc=None, *
     """
     if model not in ("ctrv", "cv"):
         raise ValueError(f"model must be 'ctrv' or 'cv', got {model!r}")
+    use_lidar, use_radar = as_flag(use_lidar, "use_lidar"), as_flag(use_radar, "use_radar")
+    iterated, joseph = as_flag(iterated, "iterated"), as_flag(joseph, "joseph")
     sigma_a = scenario.sigma_a if sigma_a is None else as_scalar(sigma_a, "sigma_a", allow_zero=True)
     sigma_yaw_acc = (scenario.sigma_yaw_acc if sigma_yaw_acc is None
                      else as_scalar(sigma_yaw_acc, "sigma_yaw_acc", allow_zero=True))

@@ -478,7 +478,10 @@ def block_inverse(M, k):
         -D^{-1} C S^{-1} & D^{-1} + D^{-1} C S^{-1} B D^{-1} \\end{bmatrix}.
 
     Only the blocks D (p - k square) and S (k square) are solved with; M itself is never
-    inverted directly.
+    inverted directly. Where D is closer to singular than A (its smallest singular value
+    is the smaller), the same factorisation is taken with the roles of the blocks swapped,
+    the Schur complement of A; solving with a nearly singular D would lose the digits of a
+    well-conditioned M (cond(M) = 7 with cond(D) = 2e15 gave errors of 0.1 on entries of 2).
 
     Parameters
     ----------
@@ -499,6 +502,18 @@ def block_inverse(M, k):
         complement S is singular (then M is singular or this partition cannot invert it).
     """
     M, k = _as_block_split(M, "M", k)
+    p = M.shape[0]
+    sigma_min = [np.linalg.svd(X, compute_uv=False)[-1] for X in (M[:k, :k], M[k:, k:])]
+    if sigma_min[1] < sigma_min[0]:
+        # pivot on A: the factorisation of P M Pᵀ (blocks swapped), whose inverse is P M⁻¹ Pᵀ
+        order = np.r_[k:p, 0:k]
+        back = np.argsort(order)
+        return _block_inverse_on_D(M[np.ix_(order, order)], p - k)[np.ix_(back, back)]
+    return _block_inverse_on_D(M, k)
+
+
+def _block_inverse_on_D(M, k):
+    """:func:`block_inverse`'s formula, solving with D = M[k:, k:] and the Schur complement of D."""
     B, C, D = M[:k, k:], M[k:, :k], M[k:, k:]
     S = schur_complement(M, k)
     try:

@@ -44,6 +44,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from kalman_course.core.validation import as_flag
+
 __all__ = ["NoiseSetting", "EskfConfig", "load_config", "config_from_dict", "config_dir",
            "BIAS_MODELS", "SECTIONS"]
 
@@ -204,6 +206,8 @@ class EskfConfig:
             settings[f"{section}.{entry}"] = NoiseSetting(v, si_unit, kind, "set in code", v)
         if "bias_model" in direct and direct["bias_model"] not in BIAS_MODELS:
             raise ValueError(f"bias_model must be one of {BIAS_MODELS}, got {direct['bias_model']!r}")
+        if "exact_reset" in direct:
+            direct["exact_reset"] = as_flag(direct["exact_reset"], "exact_reset")
         return dataclasses.replace(self, settings=settings, **direct)
 
     def describe(self) -> str:
