@@ -308,3 +308,34 @@ def test_an_indefinite_process_or_observation_noise_is_refused():
     # a singular R (a component known exactly) and Q are fine
     assert np.isfinite(eskf.update_covariance(P, K, G, np.diag([1.0, 0.0, 1.0]))).all()
     assert np.isfinite(eskf.propagate_covariance(P, F, B, np.zeros((6, 6)))).all()
+
+
+@pytest.mark.parametrize("which", ["eskf", "relative", "augmented", "nominal"])
+def test_gravity_of_the_wrong_sign_or_in_g_is_refused_by_every_filter(turns, which):
+    from kalman_course.filters import eskf_augmented, eskf_relative
+    ex, k0, s0 = turns
+    t_end = ex.imu.t[k0] + 2.0
+    runs = {"eskf": lambda g: eskf.run(ex.imu, s0, "kitti_lidar", g, lidar=ex.lidar, start=k0, t_end=t_end),
+            "relative": lambda g: eskf_relative.run_relative(ex.imu, s0, "kitti_lidar", g, vo=ex.lidar,
+                                                             relative_std=(0.01, 1e-3), start=k0, t_end=t_end),
+            "augmented": lambda g: eskf_augmented.run(ex.imu, s0, "kitti_lidar", g, lidar=ex.lidar, time_constant=1.0,
+                                                      start=k0, t_end=t_end),
+            "nominal": lambda g: nominal_ekf.run_nominal_ekf(ex.imu, s0, "kitti_lidar", g, lidar=ex.lidar, start=k0,
+                                                             t_end=t_end)}
+    run = runs[which]
+    with pytest.raises(ValueError, match="gravity points along the specific force"):
+        run(-ex.gravity)                                   # +9.81 "up" in the z-up navigation frame
+    with pytest.raises(ValueError, match=r"given in g\?"):
+        run(ex.gravity / 9.80665)
+    with pytest.raises(ValueError, match=r"\|g\| between 9.7 and 9.9"):
+        run(ex.gravity * 3.0)
+    assert np.isfinite(run(ex.gravity).position).all()     # the right one runs
+
+
+def test_at_finds_the_rows_of_unsorted_times(turns):
+    ex, k0, s0 = turns
+    res = eskf.run(ex.imu, s0, "kitti_lidar", ex.gravity, lidar=ex.lidar, start=k0, t_end=ex.imu.t[k0] + 5.0,
+                   output_times=ex.lidar.t[(ex.lidar.t > ex.imu.t[k0]) & (ex.lidar.t <= ex.imu.t[k0] + 5.0)])
+    times = res.t[::2]
+    shuffled = np.random.default_rng(0).permutation(times)
+    assert np.array_equal(res.at(shuffled).t, times) and np.array_equal(res.at(times).t, times)

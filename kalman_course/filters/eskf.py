@@ -112,6 +112,11 @@ _WHITE_NOISE_COLUMN = np.arange(12) < 6
 #: An IMU step longer than this many median steps is a gap (see the module docstring).
 IMU_GAP_FACTOR = 3.0
 
+#: |g| accepted for gravity, m/s²: the Earth's surface spans 9.78–9.83 (a margin for models).
+GRAVITY_RANGE = (9.7, 9.9)
+#: IMU samples averaged at the start to check gravity's sign against the specific force.
+GRAVITY_CHECK_SAMPLES = 20
+
 
 class ImuGapWarning(UserWarning):
     """:func:`run` found gaps in the IMU timestamps and bridged them with inflated noise."""
@@ -214,7 +219,29 @@ def _as_gravity(value) -> np.ndarray:
         shape = None
     if shape != (3,):
         raise ValueError(f"gravity must have shape (3,) (m/s², navigation frame), got {shape}")
-    return as_rows(value, "gravity")
+    g = as_rows(value, "gravity")
+    size = float(np.sqrt(g.dot(g)))
+    if not GRAVITY_RANGE[0] <= size <= GRAVITY_RANGE[1]:
+        hint = " (given in g? in m/s² it is about 9.81)" if 0.9 <= size <= 1.1 else ""
+        raise ValueError(f"gravity must be the Earth's, |g| between {GRAVITY_RANGE[0]:g} and {GRAVITY_RANGE[1]:g} "
+                         f"m/s², got |g| = {size:.4g}{hint}")
+    return g
+
+
+def _gravity_against_imu(g, rotation, f_imu, name: str = "gravity") -> None:
+    """Raise if ``g`` points along the specific force the IMU measured at the start.
+
+    Whatever the car does, the specific force f = R_nbᵀ (a − g) points, in the navigation
+    frame, against gravity to within the vehicle's vertical acceleration, which is far below
+    g: R f̄ · ĝ is close to −|g|. A gravity of the wrong sign (+9.81 "up" in a z-up frame)
+    gives +|g|, and every filter would then double gravity instead of removing it.
+    """
+    f_nav = rotation @ np.mean(f_imu[:GRAVITY_CHECK_SAMPLES], axis=0)
+    along = float(f_nav.dot(g) / np.sqrt(g.dot(g)))
+    if along > 0.5 * np.sqrt(g.dot(g)):
+        raise ValueError(f"{name} points along the specific force the IMU measured at the start (R f̄ · ĝ = "
+                         f"{along:+.2f} m/s², expected near −{np.sqrt(g.dot(g)):.2f}): its sign is flipped, or the "
+                         "initial attitude is upside down; in a z-up navigation frame gravity is (0, 0, −9.81)")
 
 
 def _as_time(value, name: str) -> float:
@@ -727,10 +754,8 @@ class EskfResult:
     rotation_all: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, 3, 3)))
 
     def at(self, times) -> "EskfResult":
-        """The rows whose time is one of ``times`` (within 1 µs), e.g. the truth's times."""
-        times = as_vector(times, "times")
-        k = np.clip(np.searchsorted(times, self.t - 1e-6), 0, len(times) - 1)
-        keep = np.abs(times[k] - self.t) <= 1e-6
+        """The rows whose time is one of ``times`` (within 1 µs, in any order), e.g. the truth's times."""
+        keep = _rows_at(self.t, times)
         return EskfResult(self.t[keep], self.position[keep], self.velocity[keep], self.rotation[keep],
                           self.accel_bias[keep], self.gyro_bias[keep], self.P[keep], self.updated[keep],
                           self.innovation, self.S, self.t_all, self.position_all, self.rotation_all)
@@ -738,6 +763,13 @@ class EskfResult:
     def std(self) -> np.ndarray:
         """Standard deviations sqrt(diag P), shape (K, 15)."""
         return np.sqrt(np.maximum(np.diagonal(self.P, axis1=1, axis2=2), 0.0))
+
+
+def _rows_at(t, times) -> np.ndarray:
+    """Mask of the entries of ``t`` (sorted) that equal one of ``times`` (any order) within 1 µs."""
+    times = np.sort(as_vector(times, "times"))
+    k = np.clip(np.searchsorted(times, t - 1e-6), 0, len(times) - 1)
+    return np.abs(times[k] - t) <= 1e-6
 
 
 def _imu_samples(imu, start, t_end):
@@ -886,13 +918,16 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
     ------
     ValueError
         Naming the argument: a NaN or inf in the IMU samples (with its index) or in
-        ``gravity``, non-increasing ``imu.t``, an observation record that does not
-        validate, a non-symmetric ``P0``, a bad ``start``, ``t_end`` or ``gap_factor``.
+        ``gravity``, a ``gravity`` that is not the Earth's in size (|g| outside 9.7–9.9 m/s²)
+        or whose sign disagrees with the IMU's specific force at the start, non-increasing
+        ``imu.t``, an observation record that does not validate, a non-symmetric ``P0``, a
+        bad ``start``, ``t_end`` or ``gap_factor``.
     """
     cfg = _as_config(config)
     x = _as_nominal(initial, "initial")
     g = _as_gravity(gravity)
     t_imu, f_imu, w_imu, flag_imu = _imu_samples(imu, start, t_end)
+    _gravity_against_imu(g, x.rotation, f_imu)
     dt_imu = np.diff(t_imu)
     if gap_factor is not None:
         gap_factor = as_scalar(gap_factor, "gap_factor")

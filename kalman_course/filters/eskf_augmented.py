@@ -403,10 +403,8 @@ class AugmentedResult(EskfResult):
     time_constant: float | None = None
 
     def at(self, times) -> "AugmentedResult":
-        """The rows whose time is one of ``times`` (within 1 µs), e.g. the truth's times."""
-        times = as_vector(times, "times")
-        k = np.clip(np.searchsorted(times, self.t - 1e-6), 0, len(times) - 1)
-        keep = np.abs(times[k] - self.t) <= 1e-6
+        """The rows whose time is one of ``times`` (within 1 µs, in any order), e.g. the truth's times."""
+        keep = eskf._rows_at(self.t, times)
         return AugmentedResult(self.t[keep], self.position[keep], self.velocity[keep], self.rotation[keep],
                                self.accel_bias[keep], self.gyro_bias[keep], self.P[keep], self.updated[keep],
                                self.innovation, self.S, error_estimate=self.error_estimate[keep],
@@ -487,6 +485,7 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
     x = eskf._as_nominal(initial, "initial")
     g = eskf._as_gravity(gravity)
     t_imu, f_imu, w_imu, flag_imu = eskf._imu_samples(imu, start, t_end)
+    eskf._gravity_against_imu(g, x.rotation, f_imu)
     if gap_factor is not None:
         gap_factor = as_scalar(gap_factor, "gap_factor")
     if lidar is None:

@@ -86,8 +86,9 @@ from kalman_course.filters.eskf import (IDX_P, IDX_TH, IDX_V, IMU_GAP_FACTOR, PO
                                         NominalState, initial_covariance)
 # the ESKF's kernels and argument checks: every formula of the filter is eskf.py's
 from kalman_course.filters.eskf import (_as_config, _as_gravity, _as_nominal, _as_observations, _correct, _gain,
-                                        _gnss_noise, _imu_gaps, _imu_samples, _inject, _position_residual,
-                                        _process_noise, _propagate, _reset_covariance, _sorted_events, _timeline)
+                                        _gnss_noise, _gravity_against_imu, _imu_gaps, _imu_samples, _inject,
+                                        _position_residual, _process_noise, _propagate, _reset_covariance,
+                                        _sorted_events, _timeline)
 
 __all__ = ["IDX_PC", "IDX_THC", "relative_motion", "relative_pose_residual", "relative_pose_jacobian",
            "clone_covariance", "yaw_nullspace", "pose_transition_blocks", "RelativeRunResult", "run_relative"]
@@ -413,6 +414,7 @@ def run_relative(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092)
     x = _as_nominal(initial, "initial")
     g = _as_gravity(gravity)
     t_imu, f_imu, w_imu, flag_imu = _imu_samples(imu, start, t_end)
+    _gravity_against_imu(g, x.rotation, f_imu)
     vo = _as_observations(vo, "vo", PoseObservations)
     if vo is None:
         raise ValueError("vo must be a PoseObservations (the VO poses), got None")

@@ -36,7 +36,8 @@ from kalman_course.core.linalg import gain, innovation_covariance, joseph_update
 from kalman_course.core.observations import PoseObservations
 from kalman_course.core.validation import as_scalar, as_vector
 # the ESKF's argument checks, so that both filters accept and reject the same inputs
-from kalman_course.filters.eskf import _as_config, _as_gravity, _as_nominal, _as_observations, _imu_samples
+from kalman_course.filters.eskf import (_as_config, _as_gravity, _as_nominal, _as_observations,
+                                        _gravity_against_imu, _imu_samples)
 
 __all__ = ["rotate_jacobian", "quat_xi", "quat_omega", "continuous_jacobian", "nominal_noise_jacobian", "propagate",
            "NominalEkfResult", "run_nominal_ekf", "REGULARISER"]
@@ -168,6 +169,7 @@ def run_nominal_ekf(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.80
     initial = _as_nominal(initial, "initial")
     g = _as_gravity(gravity)
     t_imu, f_imu, w_imu, _ = _imu_samples(imu, start, t_end)
+    _gravity_against_imu(g, initial.rotation, f_imu)
     lidar = _as_observations(lidar, "lidar", PoseObservations)
     dens = cfg.process_density
     prior = cfg.prior_std
