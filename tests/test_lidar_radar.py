@@ -133,6 +133,20 @@ def test_malformed_log_line_names_its_line_number(tmp_path, line, message):
     assert "bad.txt" in str(error.value)
 
 
+def test_a_truncated_last_line_is_not_read_as_a_shorter_valid_line(tmp_path):
+    # a UKF-project log (10/11 fields) whose last line lost its two yaw columns still has
+    # the 8/9 fields of an EKF-project line: the file's first line says which format it is
+    good = udacity_lines(lidar_radar.ctrv_lidar_radar(seed=0, duration=0.5), True)
+    cut = "\t".join(good[-1].split("\t")[:-2])
+    path = write_log(tmp_path / "cut.txt", good[:-1] + [cut])
+    with pytest.raises(ValueError, match=rf"cut.txt, line {len(good)}: .* without the true yaw .* \(a truncated"):
+        lidar_radar.read_udacity_log(path)
+    binary = tmp_path / "log.bin"
+    binary.write_bytes(b"L\t1.0\t2.0\xff\xfe\n")
+    with pytest.raises(ValueError, match="log.bin is not a text log"):
+        lidar_radar.read_udacity_log(binary)
+
+
 def test_blank_lines_are_skipped_and_an_empty_log_is_an_error(tmp_path):
     good = udacity_lines(lidar_radar.ctrv_lidar_radar(seed=0, duration=0.2))
     assert len(lidar_radar.read_udacity_log(write_log(tmp_path / "a.txt", [good[0], "", good[1], "  "]))) == 2

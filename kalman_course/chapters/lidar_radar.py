@@ -382,8 +382,9 @@ def read_udacity_log(path, *, R_lidar=R_LIDAR_DEFAULT, R_radar=R_RADAR_DEFAULT, 
     Raises
     ------
     ValueError
-        For an empty log or a malformed line; the message names the file and the line
-        number.
+        For an empty log, a file that is not text, a malformed line, or a line whose format
+        (with or without the yaw columns) differs from the first line's (a truncated line);
+        the message names the file and the line number.
     """
     path = Path(path)
     R_l = as_covariance(R_lidar, "R_lidar", 2, positive_definite=True)
@@ -391,16 +392,28 @@ def read_udacity_log(path, *, R_lidar=R_LIDAR_DEFAULT, R_radar=R_RADAR_DEFAULT, 
     sigma_a = as_scalar(sigma_a, "sigma_a", allow_zero=True)
     sigma_yaw_acc = as_scalar(sigma_yaw_acc, "sigma_yaw_acc", allow_zero=True)
     sensors, zs, stamps, truths = [], [], [], []
-    with path.open(encoding="utf-8") as lines:
-        for number, line in enumerate(lines, start=1):
-            fields = line.split()
-            if not fields:
-                continue
-            sensor, z, stamp, truth = _parse_udacity_line(fields, f"{path}, line {number}")
-            sensors.append(sensor)
-            zs.append(z)
-            stamps.append(stamp)
-            truths.append(truth)
+    with_yaw = None                  # the file's format, from its first line: every line must share it
+    try:
+        with path.open(encoding="utf-8") as lines:
+            for number, line in enumerate(lines, start=1):
+                fields = line.split()
+                if not fields:
+                    continue
+                where = f"{path}, line {number}"
+                sensor, z, stamp, truth = _parse_udacity_line(fields, where)
+                has_yaw = len(fields) == _UDACITY_FIELDS[fields[0]][1]
+                if with_yaw is None:
+                    with_yaw = has_yaw
+                elif has_yaw != with_yaw:
+                    raise ValueError(f"{where}: {len(fields)} fields, {'with' if has_yaw else 'without'} the true "
+                                     f"yaw and yaw rate, where the file's first line is "
+                                     f"{'with' if with_yaw else 'without'} them (a truncated or joined line?)")
+                sensors.append(sensor)
+                zs.append(z)
+                stamps.append(stamp)
+                truths.append(truth)
+    except UnicodeDecodeError as err:
+        raise ValueError(f"{path} is not a text log (byte {err.start} is not UTF-8): is it the right file?") from None
     if not sensors:
         raise ValueError(f"{path} holds no measurements")
     sensor = np.array(sensors)
