@@ -121,6 +121,8 @@ MALFORMED = [
     ("not a number", "L\t1.0\tabc\t{t}\t0\t0\t0\t0", r"line 3: could not convert string to float: 'abc'"),
     ("NaN measurement", "L\tnan\t2.0\t{t}\t0\t0\t0\t0", r"line 3: every number must be finite"),
     ("fractional timestamp", "L\t1.0\t2.0\t{t}.5\t0\t0\t0\t0", r"line 3: the timestamp \(field 4\) must be an integer"),
+    ("bearing in degrees", "R\t5.0\t45.0\t0.2\t{t}\t0\t0\t0\t0", r"line 3: the bearing φ \(field 3\) must be in radians"),
+    ("negative range", "R\t-5.0\t0.5\t0.2\t{t}\t0\t0\t0\t0", r"line 3: the range ρ \(field 2\) must not be negative"),
 ]
 
 
@@ -268,3 +270,12 @@ def test_a_switch_given_as_text_or_a_number_is_refused(flag):
     for value in ("False", "no", 0, 1):
         with pytest.raises(ValueError, match=f"{flag} must be True or False"):
             lidar_radar.fuse_lidar_radar(sc, **{flag: value})
+
+
+def test_a_radar_row_at_the_sensors_position_is_named_with_its_row_and_time():
+    import dataclasses
+    sc = lidar_radar.ctrv_lidar_radar(seed=0, duration=1.0)
+    at_origin = dataclasses.replace(sc, lidar_z=np.zeros_like(sc.lidar_z))   # the first fix puts the car on the radar
+    with pytest.raises(ValueError, match=r"row 1 \(radar, t = 0\.100000 s, predicted position \(0, 0\) m\): "
+                                         r"x must not be at the radar's position"):
+        lidar_radar.fuse_lidar_radar(at_origin)

@@ -317,6 +317,8 @@ def figure_eight_lidar_radar(seed: int, duration: float = 25.0, dt: float = 0.05
 #: Fields per line of the Udacity log: sensor letter, measurement, timestamp (µs), truth
 #: [p_x, p_y, v_x, v_y] and, in the UKF project's files, the true yaw and yaw rate.
 _UDACITY_FIELDS = {"L": (8, 10), "R": (9, 11)}
+#: How far beyond ±π a logged bearing may lie (rounding of an atan2 result written as text), rad.
+_BEARING_SLACK = 1e-3
 
 
 def _parse_udacity_line(fields: list[str], where: str):
@@ -335,6 +337,11 @@ def _parse_udacity_line(fields: list[str], where: str):
         raise ValueError(f"{where}: {err}") from None
     if not np.isfinite(numbers).all():
         raise ValueError(f"{where}: every number must be finite, got {' '.join(fields[1:])}")
+    if letter == "R" and abs(numbers[1]) > np.pi + _BEARING_SLACK:
+        raise ValueError(f"{where}: the bearing φ (field 3) must be in radians within [−π, π], got "
+                         f"{fields[2]} (given in degrees?)")
+    if letter == "R" and numbers[0] < 0.0:
+        raise ValueError(f"{where}: the range ρ (field 2) must not be negative, got {fields[1]}")
     try:
         stamp = int(fields[m + 1])                     # exact: a float holds µs since 1970 only to ~1 µs
     except ValueError:
@@ -634,13 +641,17 @@ def fuse_lidar_radar(scenario: CTRVScenario, sigma_a=None, sigma_yaw_acc=None, *
         if meas.sensor == "lidar" and use_lidar:
             x, P = ekf_update(x, P, meas.z, lidar_g, lidar_G, meas.R, joseph=joseph)[:2]
         elif meas.sensor == "radar" and use_radar:
-            if iterated:
-                res = iekf_update(x, P, meas.z, radar_h, radar_G,
-                                  meas.R, residual=radar_residual, max_iter=max_iter, joseph=joseph)
-                x, P, its[k] = res.x_hat, res.P_hat, res.iterations
-            else:
-                x, P = ekf_update(x, P, meas.z, radar_h, radar_G,
-                                  meas.R, residual=radar_residual, joseph=joseph)[:2]
+            try:
+                if iterated:
+                    res = iekf_update(x, P, meas.z, radar_h, radar_G,
+                                      meas.R, residual=radar_residual, max_iter=max_iter, joseph=joseph)
+                    x, P, its[k] = res.x_hat, res.P_hat, res.iterations
+                else:
+                    x, P = ekf_update(x, P, meas.z, radar_h, radar_G,
+                                      meas.R, residual=radar_residual, joseph=joseph)[:2]
+            except ValueError as err:     # e.g. a prior at the radar's position, where its Jacobian has no value
+                raise ValueError(f"row {k} (radar, t = {meas.t:.6f} s, predicted position "
+                                 f"({x[0]:.3g}, {x[1]:.3g}) m): {err}") from None
         xs[k], Ps[k] = x, P
     truth = scenario.x.copy()
     estimate = ctrv_to_cartesian(xs) if model == "ctrv" else xs
