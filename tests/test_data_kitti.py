@@ -440,6 +440,29 @@ def test_inconsistent_lengths(copy):
         load_excerpt_file(path)
 
 
+@pytest.mark.parametrize("key, factor", [("imu/t", 1e3), ("gnss/t", 1e-3), ("truth/t", 1e6)])
+def test_times_in_another_unit_are_refused(copy, key, factor):
+    path = copy / "cruise.npz"
+    _rewrite(path, lambda a: a.update({key: a[key] * factor}))
+    with pytest.raises(ValueError, match=rf"cruise\.npz: field '{key}' has a median step of .* \(times in milli"):
+        load_excerpt_file(path)
+
+
+@pytest.mark.parametrize("section, key, value", [("gnss", "sigma", -1.0), ("lidar", "sigma_position", "0.2"),
+                                                 ("lidar", "sigma_attitude_deg", None)])
+def test_a_negative_or_missing_sigma_in_the_metadata_is_refused(copy, section, key, value):
+    path = copy / "cruise.npz"
+
+    def change(a):
+        meta = json.loads(str(a["meta"]))
+        meta[section][key] = value
+        a["meta"] = np.array(json.dumps(meta))
+
+    _rewrite(path, change)
+    with pytest.raises(ValueError, match=rf"cruise\.npz: metadata {section}\.{key} must be a number ≥ 0"):
+        load_excerpt_file(path)
+
+
 def test_wrong_schema_version(copy):
     path = copy / "cruise.npz"
 

@@ -56,6 +56,9 @@ EXCERPTS = ("cruise", "turns", "stop_go", "seq00")
 #: Version of the file layout below; bumped whenever a field is added, removed or changed.
 SCHEMA_VERSION = 1
 
+#: Median time steps a valid excerpt's clocks may have, s (100 Hz IMU, 1 Hz GNSS, 10 Hz poses).
+_TIME_STEP_RANGE = {"imu/t": (1e-3, 0.1), "gnss/t": (0.1, 10.0), "truth/t": (0.01, 1.0)}
+
 # field name -> (dtype kind, shape with symbolic sizes: N IMU samples, M GNSS fixes,
 # K ground-truth poses)
 _SCHEMA: dict[str, tuple[str, tuple]] = {
@@ -682,6 +685,17 @@ def _check_schema(path: Path, arrays: dict[str, np.ndarray]) -> dict:
     for key in ("imu/t", "gnss/t", "truth/t"):
         if len(arrays[key]) < 2 or np.any(np.diff(arrays[key]) <= 0.0):
             raise ValueError(f"{path}: field {key!r} must hold at least 2 strictly increasing times")
+        # times in seconds: the IMU's 100 Hz, the GNSS's 1 Hz and the 10 Hz poses, within a factor of 10
+        step = float(np.median(np.diff(arrays[key])))
+        low, high = _TIME_STEP_RANGE[key]
+        if not low <= step <= high:
+            raise ValueError(f"{path}: field {key!r} has a median step of {step:g}, expected {low:g}–{high:g} s "
+                             "(times in milliseconds or microseconds?)")
+    for section, keys in (("gnss", ("sigma",)), ("lidar", ("sigma_position", "sigma_attitude_deg"))):
+        for key in keys:
+            value = meta.get(section, {}).get(key) if isinstance(meta.get(section), dict) else None
+            if not isinstance(value, (int, float)) or isinstance(value, bool) or not np.isfinite(value) or value < 0:
+                raise ValueError(f"{path}: metadata {section}.{key} must be a number ≥ 0, got {value!r}")
     for key in ("truth/quaternion", "lidar/quaternion", "orb_slam2/quaternion", "sptam/quaternion"):
         err = np.abs(np.linalg.norm(arrays[key], axis=1) - 1.0).max()
         if err > 1e-9:
