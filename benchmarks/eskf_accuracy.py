@@ -137,7 +137,8 @@ def gnss_rows(name: str, cfg) -> tuple[float, float, float]:
         fixes = gnss.observations()
         inside = fixes.select((fixes.t >= ex.truth.t[0]) & (fixes.t <= ex.truth.t[-1]))
         times = np.union1d(ex.truth.t, inside.t)
-        res = eskf.run(ex.imu, s0, cfg, ex.gravity, gnss=fixes, start=k0, output_times=times)
+        res = eskf.run(ex.imu, s0, cfg, ex.gravity, gnss=fixes, start=k0, output_times=times,
+                       clip_output_times=True)
         r_truth = res.at(ex.truth.t)
         at_truth.append(ate_rmse(r_truth.position, ex.truth.position[np.isin(ex.truth.t, r_truth.t)], align="none"))
         r_fix = res.at(inside.t)

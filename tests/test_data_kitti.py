@@ -320,7 +320,7 @@ def test_lidar_record_rejects_a_nan_pose():
     position = truth.position.copy()
     position[17, 2] = np.nan
     bad = type("Poses", (), {"t": truth.t, "position": position, "rotation": truth.rotation})
-    with pytest.raises(ValueError, match=r"^position\[17\] is NaN$"):
+    with pytest.raises(ValueError, match=r"^truth\.position\[17\] is NaN$"):
         simulate_lidar_poses(bad, seed=0)
 
 

@@ -9,7 +9,11 @@ import numpy as np
 import pytest
 import yaml
 
+from kalman_course.core.observations import PositionObservations
+from kalman_course.data import load_kitti
+from kalman_course.filters import eskf
 from kalman_course.filters.eskf_config import config_dir, config_from_dict, load_config
+from kalman_course.filters.eskf_streams import ObservationStream
 
 
 def _raw(name="kitti_lidar"):
@@ -50,7 +54,7 @@ def test_interpolated_section_is_optional():
     (lambda d: d["process"]["gyro_noise"].pop("meaning"), "missing meaning"),
     (lambda d: d["process"]["gyro_noise"].__setitem__("unit", "rad/s^2"), "unit"),
     (lambda d: d["process"]["gyro_noise"].__setitem__("kind", "std"), "kind"),
-    (lambda d: d["prior"]["position"].__setitem__("value", -1.0), "positive"),
+    (lambda d: d["prior"]["position"].__setitem__("value", -1.0), r"non-negative \(0 = known exactly\)"),
     (lambda d: d["prior"]["position"].__setitem__("value", "abc"), "number"),
     (lambda d: d["process"]["accel_noise"].__setitem__("unit", "m/s^2"), "per-sample unit"),
     (lambda d: d["observation"].pop("lidar_position"), "missing observation.lidar_position"),
@@ -87,3 +91,32 @@ def test_replace_changes_fields_and_si_values():
     for text in ("false", "no", 0):                      # a YAML-looking string is not a bool
         with pytest.raises(ValueError, match="exact_reset must be True or False"):
             cfg.replace(exact_reset=text)
+
+
+def test_zero_means_known_exactly_a_bias_free_filter_needs_no_tiny_numbers():
+    # the Toronto project's filter has no bias states: biases known to be zero, and constant
+    raw = copy.deepcopy(_raw())
+    for entry in ("accel_bias", "gyro_bias"):
+        raw["prior"][entry]["value"] = 0
+    raw["bias_model"] = "constant"
+    cfg = config_from_dict(raw)
+    assert (cfg.prior_std[9:] == 0.0).all()
+    assert cfg.replace(process__accel_bias_noise=0.0).process_density[2] == 0.0
+    ex = load_kitti("turns")
+    k0, s0 = ex.initial_state()
+    res = eskf.run(ex.imu, s0, cfg, ex.gravity, lidar=ex.lidar, start=k0, t_end=ex.imu.t[k0] + 5.0)
+    assert res.updated.all() and len(res.t) > 40
+    assert (res.accel_bias == 0.0).all() and (res.gyro_bias == 0.0).all()
+    assert (res.P[:, 9:, :] == 0.0).all() and (res.P[:, :, 9:] == 0.0).all()
+    with pytest.raises(ValueError, match=r"imu_rate_hz: value must be a positive finite number, got 0"):
+        config_from_dict(dict(raw, imu_rate_hz=0))
+
+
+def test_a_zero_noise_sensor_the_filter_is_already_certain_of_is_named():
+    ex = load_kitti("turns")
+    k0, s0 = ex.initial_state()
+    fix = PositionObservations([ex.imu.t[k0 + 1]], [s0.position])
+    with pytest.raises(ValueError, match=r"^surveyed\[0\] at t = [0-9.]+ s: the innovation covariance S = G P̌ Gᵀ \+ R "
+                                         r"is singular"):
+        eskf.run(ex.imu, s0, "kitti_lidar", ex.gravity, start=k0, t_end=ex.imu.t[k0 + 3], P0=np.zeros((15, 15)),
+                 streams=[ObservationStream(fix, 0.0, name="surveyed")])

@@ -55,7 +55,7 @@ def run(request, cruise):
     if request.param == "lidar":
         return eskf.run(cruise.imu, s0, "kitti_lidar", cruise.gravity, lidar=cruise.lidar, start=k0)
     res = eskf.run(cruise.imu, s0, "kitti_gnss", cruise.gravity, gnss=cruise.gnss.observations(),
-                   start=k0, output_times=cruise.truth.t)
+                   start=k0, output_times=cruise.truth.t, clip_output_times=True)
     return res.at(cruise.truth.t)              # rows at the truth's times only
 
 
@@ -163,3 +163,72 @@ def test_bad_input_names_the_argument(cruise, change, message):
     args = _bad(cruise, **{key: make(cruise.truth) for key, make in change.items()})
     with pytest.raises(ValueError, match=message):
         evaluate(**args)
+
+
+# ---------------------------------------------------------------------------------------
+# what is not a rotation is refused, in the estimate and in the truth (issue 27)
+# ---------------------------------------------------------------------------------------
+
+from types import SimpleNamespace                                        # noqa: E402
+
+from kalman_course.evaluation.attitude import heading_tilt_error         # noqa: E402
+
+
+def _small_truth(K=6):
+    rng = np.random.default_rng(3)
+    t = 0.1 * np.arange(K)
+    rotation = so3.exp(rng.normal(0.0, 0.5, (K, 3)))
+    return SimpleNamespace(t=t, position=rng.normal(0.0, 5.0, (K, 3)), rotation=rotation)
+
+
+BROKEN = [
+    ("reflection", lambda R: R @ np.diag([1.0, 1.0, -1.0]), "is a reflection, not a rotation"),
+    ("scaled", lambda R: 1.05 * R, r"is not a rotation matrix \(\|RᵀR − I\| = 0.1"),
+    ("sheared", lambda R: R @ np.array([[1.0, 0.3, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]),
+     "is not a rotation matrix"),
+]
+
+
+@pytest.mark.parametrize("label, broken, message", BROKEN, ids=[b[0] for b in BROKEN])
+def test_evaluate_refuses_an_estimate_that_is_not_a_rotation(label, broken, message):
+    truth = _small_truth()
+    rotation = truth.rotation.copy()
+    rotation[3] = broken(rotation[3])
+    with pytest.raises(ValueError, match=rf"^rotation\[3\] {message}"):
+        evaluate(truth.t, truth.position, rotation, truth)
+
+
+@pytest.mark.parametrize("label, broken, message", BROKEN, ids=[b[0] for b in BROKEN])
+def test_evaluate_refuses_a_truth_that_is_not_a_rotation(label, broken, message):
+    truth = _small_truth()
+    estimate = truth.rotation.copy()
+    truth.rotation[2] = broken(truth.rotation[2])
+    with pytest.raises(ValueError, match=rf"^truth.rotation\[2\] {message}"):
+        evaluate(truth.t, truth.position, estimate, truth)
+
+
+def test_evaluate_accepts_rotations_printed_with_seven_digits():
+    # products of two matrices each ~1e-7 off SO(3) are not re-checked against the tolerance
+    truth = _small_truth()
+    printed = np.vectorize(lambda v: float(f"{v:.6e}"))(truth.rotation)
+    out = evaluate(truth.t, truth.position, printed, truth)
+    assert out["ape_attitude_deg"] < 1e-4
+
+
+@pytest.mark.parametrize("label, broken, message", BROKEN, ids=[b[0] for b in BROKEN])
+def test_heading_tilt_error_refuses_what_is_not_a_rotation(label, broken, message):
+    truth = _small_truth()
+    bad = truth.rotation.copy()
+    bad[4] = broken(bad[4])
+    with pytest.raises(ValueError, match=rf"^rotation\[4\] {message}"):
+        heading_tilt_error(bad, truth.rotation)
+    with pytest.raises(ValueError, match=rf"^rotation_true\[4\] {message}"):
+        heading_tilt_error(truth.rotation, bad)
+    with pytest.raises(ValueError, match=rf"^rotation_true {message}"):
+        heading_tilt_error(truth.rotation[0], bad[4])
+
+
+def test_heading_tilt_error_still_splits_a_turn():
+    R_true = so3.from_rpy(0.1, -0.2, 1.0)
+    heading, tilt = heading_tilt_error(so3.exp([0.0, 0.0, np.deg2rad(2.0)]) @ R_true, R_true)
+    assert np.isclose(heading, 2.0) and np.isclose(tilt, 0.0, atol=1e-12)

@@ -847,3 +847,144 @@ def test_single_calls_cost_is_in_filterpys_league():
 
     ratio = _best_of_five_ratio(ours, lambda: _filterpy_over(F, Q, G, R, ys))
     assert ratio <= 2.0, ratio
+
+
+# ---------------------------------------------------------------------------------------
+# the Rauch–Tung–Striebel smoother
+# ---------------------------------------------------------------------------------------
+
+from kalman_course.filters.kf import RTSResult, rts_smooth  # noqa: E402
+
+
+def cv_2d_problem(N=60, seed=4, missing=()):
+    """A 2-D constant-velocity target, state [x, y, vx, vy], with a non-diagonal Q and R ≠ I."""
+    dt = 0.2
+    F = np.eye(4)
+    F[0, 2] = F[1, 3] = dt
+    q_block = np.array([[dt ** 3 / 3, dt ** 2 / 2], [dt ** 2 / 2, dt]])
+    # correlated accelerations in x and y make Q non-diagonal across the axes too
+    Q = np.kron(np.array([[0.8, 0.3], [0.3, 0.5]]), q_block)[np.ix_([0, 2, 1, 3], [0, 2, 1, 3])]
+    G = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
+    R = np.array([[2.0, 0.4], [0.4, 1.5]])
+    rng = np.random.default_rng(seed)
+    x = np.array([0.0, 0.0, 1.0, -0.5])
+    ys = np.empty((N, 2))
+    for k in range(N):
+        if k:
+            x = F @ x + rng.multivariate_normal(np.zeros(4), Q)
+        ys[k] = G @ x + rng.multivariate_normal(np.zeros(2), R)
+    ys[list(missing)] = np.nan
+    x0, P0 = np.zeros(4), np.diag([25.0, 25.0, 4.0, 4.0])
+    return x0, P0, F, Q, G, R, ys
+
+
+def filterpy_smoothed(x0, P0, F, Q, G, R, ys):
+    f = KalmanFilter(dim_x=4, dim_z=2)
+    f.x, f.P, f.F, f.Q, f.H, f.R = x0.copy(), P0.copy(), F, Q, G, R
+    xs, Ps = [], []
+    for k, y in enumerate(ys):
+        if k:
+            f.predict()
+        f.update(None if np.isnan(y[0]) else y)
+        xs.append(f.x.copy())
+        Ps.append(f.P.copy())
+    x_smooth, P_smooth, C, _ = f.rts_smoother(np.array(xs), np.array(Ps))
+    return x_smooth, P_smooth, C
+
+
+@pytest.mark.parametrize("missing", [(), (5, 6, 7, 30, 59)])
+def test_rts_smooth_matches_filterpy(missing):
+    problem = cv_2d_problem(missing=missing)
+    x0, P0, F, Q, G, R, ys = problem
+    hist = run_kf(x0, P0, F, Q, G, R, ys)
+    smooth = rts_smooth(hist, F, Q)
+    x_ref, P_ref, C_ref = filterpy_smoothed(*problem)
+    assert isinstance(smooth, RTSResult)
+    assert smooth.x_smooth.shape == (60, 4) and smooth.P_smooth.shape == (60, 4, 4)
+    assert smooth.C.shape == (59, 4, 4)
+    np.testing.assert_allclose(smooth.x_smooth, x_ref, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(smooth.P_smooth, P_ref, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(smooth.C, C_ref[:-1], rtol=0, atol=1e-12)
+
+
+def test_rts_smooth_ends_at_the_filter_and_never_raises_a_variance():
+    x0, P0, F, Q, G, R, ys = cv_2d_problem(missing=(10, 11))
+    hist = run_kf(x0, P0, F, Q, G, R, ys)
+    smooth = rts_smooth(hist, F)                                   # Q is optional
+    np.testing.assert_array_equal(smooth.x_smooth[-1], hist.x_hat[-1])
+    np.testing.assert_array_equal(smooth.P_smooth[-1], hist.P_hat[-1])
+    var_smooth = np.diagonal(smooth.P_smooth, axis1=1, axis2=2)
+    var_filter = np.diagonal(hist.P_hat, axis1=1, axis2=2)
+    assert (var_smooth <= var_filter * (1 + 1e-12)).all()
+    assert (var_smooth[:-5] < var_filter[:-5]).all()               # the future helps
+    # P̂ − P̃ is positive semi-definite, not just its diagonal
+    assert min(np.linalg.eigvalsh(hist.P_hat - smooth.P_smooth).min(axis=1)) > -1e-12
+    np.testing.assert_array_equal(smooth.P_smooth, np.swapaxes(smooth.P_smooth, 1, 2))
+
+
+def test_rts_smooth_with_one_step_and_a_stack_of_F():
+    x0, P0, F, Q, G, R, ys = cv_2d_problem(N=8)
+    hist = run_kf(x0, P0, F, Q, G, R, ys)
+    stacked = rts_smooth(hist, np.broadcast_to(F, (7, 4, 4)), Q)
+    np.testing.assert_allclose(stacked.x_smooth, rts_smooth(hist, F, Q).x_smooth, atol=0)
+    one = rts_smooth(run_kf(x0, P0, F, Q, G, R, ys[:1]), F, Q)
+    assert one.C.shape == (0, 4, 4) and one.x_smooth.shape == (1, 4)
+
+
+def test_rts_smooth_with_a_time_varying_model_uses_each_step_f():
+    # a learner's own loop with F_k changing (a varying time step); the record's priors are used
+    x0, P0, _, Q, G, R, ys = cv_2d_problem(N=12)
+    dts = np.linspace(0.1, 0.5, 11)
+    Fs = np.stack([np.eye(4) + dt * np.eye(4, k=2) for dt in dts])
+    x, P = x0, P0
+    rows = {"x_check": [], "P_check": [], "x_hat": [], "P_hat": []}
+    for k, y in enumerate(ys):
+        if k:
+            x, P = kf_predict(x, P, Fs[k - 1], Q)
+        rows["x_check"].append(x)
+        rows["P_check"].append(P)
+        x, P = kf_update(x, P, y, G, R)[:2]
+        rows["x_hat"].append(x)
+        rows["P_hat"].append(P)
+    record = type("Record", (), {name: np.array(v) for name, v in rows.items()})()
+    smooth = rts_smooth(record, Fs, Q)
+    k = 4
+    C = rows["P_hat"][k] @ Fs[k].T @ np.linalg.inv(rows["P_check"][k + 1])
+    np.testing.assert_allclose(smooth.C[k], C, atol=1e-10)
+    with pytest.raises(ValueError, match="F and Q do not match the filter's run"):
+        rts_smooth(record, Fs[0], Q)                               # one F for all: not this run
+
+
+def test_rts_smooth_bad_input_is_named():
+    x0, P0, F, Q, G, R, ys = cv_2d_problem(N=6)
+    hist = run_kf(x0, P0, F, Q, G, R, ys)
+    with pytest.raises(ValueError, match=r"F must be one \(4, 4\) matrix or a stack of N − 1 = 5"):
+        rts_smooth(hist, np.broadcast_to(F, (6, 4, 4)))
+    with pytest.raises(ValueError, match=r"F must have shape \(4, 4\), got \(2, 2\)"):
+        rts_smooth(hist, np.eye(2))
+    with pytest.raises(ValueError, match=r"F must be a 2-D matrix of shape \(4, 4\)"):
+        rts_smooth(hist, np.ones(4))
+    with pytest.raises(ValueError, match="F and Q do not match the filter's run: history.P_check\\[1\\]"):
+        rts_smooth(hist, F, 2.0 * Q)
+    with pytest.raises(ValueError, match="Q must have a non-negative diagonal"):
+        rts_smooth(hist, F, -Q)
+    with pytest.raises(ValueError, match="B was given without Q"):
+        rts_smooth(hist, F, B=np.eye(4))
+    with pytest.raises(ValueError, match="history must be the KFHistory"):
+        rts_smooth(object(), F)
+    short = KFHistory(hist.x_check[:3], hist.P_check, hist.x_hat, hist.P_hat, hist.innovation, hist.S, hist.K)
+    with pytest.raises(ValueError, match=r"history.x_check must have shape \(N=6, 4\)"):
+        rts_smooth(short, F)
+    P_check = hist.P_check.copy()
+    P_check[3] = 0.0
+    broken = KFHistory(hist.x_check, P_check, hist.x_hat, hist.P_hat, hist.innovation, hist.S, hist.K)
+    with pytest.raises(ValueError, match=r"history.P_check\[3\] must be positive definite"):
+        rts_smooth(broken, F)
+    P_hat = hist.P_hat.copy()
+    P_hat[2, 0, 1] += 1.0
+    with pytest.raises(ValueError, match=r"history.P_hat\[2\] must be symmetric"):
+        rts_smooth(KFHistory(hist.x_check, hist.P_check, hist.x_hat, P_hat, hist.innovation, hist.S, hist.K), F)
+    x_hat = hist.x_hat.copy()
+    x_hat[4, 1] = np.nan
+    with pytest.raises(ValueError, match=r"history.x_hat must be finite"):
+        rts_smooth(KFHistory(hist.x_check, hist.P_check, x_hat, hist.P_hat, hist.innovation, hist.S, hist.K), F)

@@ -118,7 +118,7 @@ MALFORMED = [
     ("unknown sensor letter", "X\t1.0\t2.0\t{t}\t0\t0\t0\t0", r"line 3: the first field must be 'L' \(lidar\) or 'R'"),
     ("lidar line too short", "L\t1.0\t2.0\t{t}\t0\t0\t0", r"line 3: a 'L' line has 8 fields .* got 7"),
     ("radar line too long", "R\t1.0\t0.1\t0.2\t{t}\t0\t0\t0\t0\t0", r"line 3: a 'R' line has 9 fields .* got 10"),
-    ("not a number", "L\t1.0\tabc\t{t}\t0\t0\t0\t0", r"line 3: could not convert string to float: 'abc'"),
+    ("not a number", "L\t1.0\tabc\t{t}\t0\t0\t0\t0", r"line 3: field 3 must be a number, got 'abc'"),
     ("NaN measurement", "L\tnan\t2.0\t{t}\t0\t0\t0\t0", r"line 3: every number must be finite"),
     ("fractional timestamp", "L\t1.0\t2.0\t{t}.5\t0\t0\t0\t0", r"line 3: the timestamp \(field 4\) must be an integer"),
     ("bearing in degrees", "R\t5.0\t45.0\t0.2\t{t}\t0\t0\t0\t0", r"line 3: the bearing φ \(field 3\) must be in radians"),

@@ -233,3 +233,180 @@ def test_check_false_gives_the_same_result_without_validating(rng):
     np.testing.assert_array_equal(so3.log(R[0], check=False), so3.log(R[0]))
     np.testing.assert_array_equal(so3.hat(phi, check=False), so3.hat(phi))
     np.testing.assert_array_equal(so3.left_jacobian(phi[1], check=False), so3.left_jacobian(phi[1]))
+
+
+# ---------------------------------------------------------------------------------------
+# what is not a rotation is refused (issue 27: safe on anyone's data)
+# ---------------------------------------------------------------------------------------
+
+SHEAR = np.array([[1.0, 0.2, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+NOT_ROTATIONS = [
+    ("minus identity", -np.eye(3), "R is a reflection"),
+    ("mirror", np.diag([1.0, 1.0, -1.0]), "R is a reflection"),
+    ("scaled", 1.01 * np.eye(3), r"R is not a rotation matrix \(\|RᵀR − I\| = 0.0201"),
+    ("sheared", SHEAR, "R is not a rotation matrix"),
+    ("zero", np.zeros((3, 3)), "R is not a rotation matrix"),
+]
+
+
+@pytest.mark.parametrize("func", [so3.log, so3.matrix_to_quat, so3.angle, so3.to_rpy])
+@pytest.mark.parametrize("label, M, message", NOT_ROTATIONS, ids=[c[0] for c in NOT_ROTATIONS])
+def test_a_matrix_that_is_not_a_rotation_is_refused(func, label, M, message):
+    with pytest.raises(ValueError, match=message):
+        func(M)
+
+
+@pytest.mark.parametrize("func", [so3.log, so3.matrix_to_quat, so3.angle, so3.to_rpy])
+def test_a_stack_names_its_first_bad_matrix(func, rng):
+    R = so3.exp(random_rotvecs(rng, 6))
+    R[4] = R[4] @ np.diag([1.0, -1.0, 1.0])
+    R[5] = 2.0 * R[5]
+    with pytest.raises(ValueError, match=r"^R\[4\] is a reflection, not a rotation \(det = -1"):
+        func(R)
+
+
+def test_log_and_interpolate_name_their_arguments(rng):
+    R = so3.exp(random_rotvecs(rng, 3))
+    with pytest.raises(ValueError, match=r"^R0\[1\] is a reflection"):
+        so3.interpolate(np.stack([R[0], -R[1]]), R[:2], 0.5)
+    with pytest.raises(ValueError, match=r"^R1 is not a rotation matrix"):
+        so3.interpolate(R[0], SHEAR, 0.5)
+
+
+def test_what_was_silently_wrong_before():
+    # a reflection's log was 0 and -I had the quaternion (0, 1, 0, 0): now both are errors,
+    # and check=False still takes the old, unvalidated path
+    mirror = np.diag([1.0, 1.0, -1.0])
+    np.testing.assert_array_equal(so3.log(mirror, check=False), np.zeros(3))
+    np.testing.assert_array_equal(so3.angle(mirror, check=False), 0.0)
+    with pytest.raises(ValueError, match="reflection"):
+        so3.log(mirror)
+    with pytest.raises(ValueError, match="reflection"):
+        so3.matrix_to_quat(-np.eye(3))
+
+
+def test_round_off_within_the_tolerance_passes(rng):
+    from kalman_course.core.validation import ROTATION_TOL
+    R = so3.exp(random_rotvecs(rng, 20))
+    printed = np.vectorize(lambda v: float(f"{v:.6e}"))(R)      # KITTI's 7 digits
+    np.testing.assert_allclose(so3.log(printed), so3.log(R), atol=1e-5)
+    for k in range(3):                                            # the one-matrix fast path too
+        so3.log(printed[k])
+    almost = np.eye(3) * (1.0 + 0.4 * ROTATION_TOL)
+    so3.log(almost)
+    with pytest.raises(ValueError, match="tolerance 1e-06"):
+        so3.log(np.eye(3) * (1.0 + 0.6 * ROTATION_TOL))
+
+
+def test_the_single_matrix_fast_path_applies_the_same_rule(rng):
+    # log of one matrix checks with Python floats; the stack with numpy: they must agree
+    from kalman_course.core.validation import ROTATION_TOL
+    base = so3.exp(random_rotvecs(rng, 1))[0]
+    for scale in (0.3, 0.45, 0.55, 0.7):
+        bumped = base.copy()
+        bumped[1, 2] += scale * ROTATION_TOL * 2.0            # |RᵀR − I| ≈ scale · 2e-6 · |R|
+        err = np.abs(bumped.T @ bumped - np.eye(3)).max()
+        single_ok = stack_ok = True
+        try:
+            so3.log(bumped)
+        except ValueError:
+            single_ok = False
+        try:
+            so3.log(bumped[None])
+        except ValueError:
+            stack_ok = False
+        assert single_ok == stack_ok == (err <= ROTATION_TOL)
+
+
+def test_as_rotations_returns_the_stack_and_names_it(rng):
+    R = so3.exp(random_rotvecs(rng, 3))
+    assert so3.as_rotations(R, "rotation") is R
+    np.testing.assert_array_equal(so3.as_rotations(R.tolist(), "rotation"), R)
+    with pytest.raises(ValueError, match=r"^rotation\[2\] is not a rotation matrix"):
+        so3.as_rotations(np.stack([R[0], R[1], 3.0 * R[2]]), "rotation")
+    with pytest.raises(ValueError, match=r"rotation must have shape \(3, 3\)"):
+        so3.as_rotations(np.zeros((3, 4)), "rotation")
+
+
+# ---------------------------------------------------------------------------------------
+# roll, pitch, yaw
+# ---------------------------------------------------------------------------------------
+
+def test_rpy_is_z_then_y_then_x_as_products_of_axis_rotations():
+    roll, pitch, yaw = 0.3, -0.7, 2.1
+    expected = so3.exp([0.0, 0.0, yaw]) @ so3.exp([0.0, pitch, 0.0]) @ so3.exp([roll, 0.0, 0.0])
+    np.testing.assert_allclose(so3.from_rpy(roll, pitch, yaw), expected, atol=1e-15)
+    np.testing.assert_allclose(so3.from_rpy(0.5, 0.0, 0.0), so3.exp([0.5, 0.0, 0.0]), atol=1e-15)
+    np.testing.assert_allclose(so3.from_rpy(0.0, 0.5, 0.0), so3.exp([0.0, 0.5, 0.0]), atol=1e-15)
+    np.testing.assert_allclose(so3.from_rpy(0.0, 0.0, 0.5), so3.exp([0.0, 0.0, 0.5]), atol=1e-15)
+    # a positive yaw turns the body's x axis (forward) towards the navigation frame's y
+    assert so3.from_rpy(0.0, 0.0, 0.1)[1, 0] > 0.0
+
+
+def _rpy_samples(rng):
+    n = 400
+    roll = rng.uniform(-np.pi, np.pi, n)
+    pitch = rng.uniform(-np.pi / 2, np.pi / 2, n)
+    yaw = rng.uniform(-np.pi, np.pi, n)
+    special = np.array([0.0, 1e-12, -1e-9, np.pi - 1e-9, -np.pi + 1e-9, np.pi, 1.0])
+    roll[:7], yaw[7:14] = special, special
+    pitch[14:21] = special.clip(-np.pi / 2, np.pi / 2)
+    pitch[21:27] = [np.pi / 2 - 1e-6, -np.pi / 2 + 1e-6, np.pi / 2 - 1e-7, -np.pi / 2 + 2e-7, 1e-13, -0.0]
+    return roll, pitch, yaw
+
+
+def test_rpy_round_trip_gives_the_angles_back(rng):
+    roll, pitch, yaw = _rpy_samples(rng)
+    R = so3.from_rpy(roll, pitch, yaw)
+    assert R.shape == (400, 3, 3) and so3.is_rotation(R, tol=1e-14)
+    got = so3.to_rpy(R)
+    assert got.shape == (400, 3)
+    # compare angles modulo 2π (π and −π are the same roll), and the matrices exactly
+    # (outside the gimbal-lock band, where roll and yaw are separately defined)
+    free = np.cos(pitch) >= so3.GIMBAL_LOCK
+    assert free.sum() > 390
+    wrapped = np.angle(np.exp(1j * (got - np.stack([roll, pitch, yaw], -1))))
+    assert np.abs(wrapped[free]).max() < 1e-8
+    np.testing.assert_allclose(so3.from_rpy(*got.T), R, atol=1e-12)
+    assert (got[:, [0, 2]] > -np.pi).all() and (got[:, [0, 2]] <= np.pi).all()
+    assert (np.abs(got[:, 1]) <= np.pi / 2).all()
+
+
+def test_rpy_of_a_random_rotation_reproduces_it(rng):
+    R = so3.exp(random_rotvecs(rng, 300))
+    np.testing.assert_allclose(so3.from_rpy(*so3.to_rpy(R).T), R, atol=1e-12)
+    for k in range(3):                                 # one matrix gives what the stack gives
+        np.testing.assert_array_equal(so3.to_rpy(R[k]), so3.to_rpy(R)[k])
+
+
+@pytest.mark.parametrize("pitch", [np.pi / 2, -np.pi / 2, np.pi / 2 - 1e-10, -np.pi / 2 + 3e-9])
+def test_gimbal_lock_puts_the_turn_in_yaw(pitch):
+    roll, yaw = 0.4, -1.1
+    R = so3.from_rpy(roll, pitch, yaw)
+    got_roll, got_pitch, got_yaw = so3.to_rpy(R)
+    assert got_roll == 0.0
+    assert abs(got_pitch - pitch) < 1e-7
+    # only yaw − roll (pitch +π/2) or yaw + roll (pitch −π/2) is defined there
+    combined = yaw - roll if pitch > 0 else yaw + roll
+    assert abs(np.angle(np.exp(1j * (got_yaw - combined)))) < 1e-7
+    np.testing.assert_allclose(so3.from_rpy(got_roll, got_pitch, got_yaw), R, atol=1e-8)
+
+
+def test_rpy_broadcasts():
+    assert so3.from_rpy(0.1, 0.2, 0.3).shape == (3, 3)
+    assert so3.to_rpy(so3.from_rpy(0.1, 0.2, 0.3)).shape == (3,)
+    assert so3.from_rpy(np.zeros(5), 0.2, 0.0).shape == (5, 3, 3)
+    assert so3.from_rpy(np.zeros((2, 1)), np.zeros(4), 0.0).shape == (2, 4, 3, 3)
+    assert so3.to_rpy(np.broadcast_to(np.eye(3), (2, 4, 3, 3))).shape == (2, 4, 3)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(roll=200.0, pitch=0.0, yaw=0.0), r"roll must be in radians, \|roll\| ≤ 2π, got 200 \(degrees\?"),
+    (dict(roll=0.0, pitch=[0.0, -90.0], yaw=0.0), r"pitch must be in radians.*got -90"),
+    (dict(roll=0.0, pitch=0.0, yaw=np.nan), "yaw must be finite"),
+    (dict(roll="a", pitch=0.0, yaw=0.0), "roll must be an angle in radians"),
+    (dict(roll=np.zeros(2), pitch=np.zeros(3), yaw=0.0), "roll, pitch and yaw must broadcast"),
+])
+def test_rpy_bad_input_is_named(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        so3.from_rpy(**kwargs)

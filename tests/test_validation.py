@@ -148,6 +148,9 @@ ROUTE = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 2.0, 0.0], [0.0, 1.0, 
 TRIANGLE = np.array([[0.5, 0.25, 0.25], [0.25, 0.5, 0.25], [0.25, 0.25, 0.5]])
 M4 = np.array([[4.0, 1.0, 0.5, 0.0], [1.0, 3.0, 0.0, 0.5], [0.5, 0.0, 2.0, 0.3], [0.0, 0.5, 0.3, 1.0]])
 
+HIST4 = kf.run_kf(Z2, I2, F2, 0.1 * I2, G12, R1, np.array([[0.1], [0.3], [0.2], [0.4]]))
+ROT4 = np.stack([np.eye(3), np.diag([1.0, -1.0, -1.0]), np.diag([-1.0, 1.0, -1.0]), np.eye(3)])
+
 # (function, good keyword arguments, {argument: (kind, kind parameters)}, sized_by)
 # sized_by[arg] = the argument a size-only fault of ``arg`` may be reported against.
 SPECS = [
@@ -195,6 +198,8 @@ SPECS = [
      {"x0": ("vector", (2,)), "P0": ("psd", (2,)), "F": ("matrix", (2, 2)), "Q": ("psd", (2,)),
       "G": ("matrix", (1, 2)), "R": ("pd", (1,)), "ys": ("matrix", (3, 1)), "joseph": ("flag", ())},
      {"x0": "P0", "G": "R", "ys": "ys"}),
+    (kf.rts_smooth, dict(history=HIST4, F=F2, Q=0.1 * I2),
+     {"F": ("matrix", (2, 2)), "Q": ("psd", (2,))}, {"F": "history"}),
     # filters.bayes
     (bayes.normalise, dict(belief=[0.2, 0.3]), {"belief": ("vector", (2,))}, {"belief": "belief"}),
     (bayes.histogram_update, dict(belief=[0.5, 0.5], likelihood=[0.2, 0.9]),
@@ -227,6 +232,9 @@ SPECS = [
      {"points": "points"}),
     (trajectory.ate_rmse, dict(estimate=ROUTE, reference=ROUTE + 0.1, align="se3"),
      {"estimate": ("matrix", (4, 3)), "reference": ("matrix", (4, 3))}, {"estimate": "reference"}),
+    (trajectory.align_poses, dict(position=ROUTE, rotation=ROT4, ref_position=ROUTE + 1.0, ref_rotation=ROT4,
+                                  align="se3"),
+     {"position": ("matrix", (4, 3)), "ref_position": ("matrix", (4, 3))}, {"position": "ref_position"}),
 ]
 
 # A few bad values are fine for some arguments: a row count of N (any N >= 1 steps or
@@ -240,6 +248,8 @@ ALLOWED = {
     ("numerical_jacobian", "x", "wrong length"), ("normalise", "belief", "wrong length"),
     # dof may be an array, broadcast against x or p
     ("chi2_cdf", "dof", "list"), ("chi2_ppf", "dof", "list"),
+    # Q of the smoother is optional (given, it is checked against the record)
+    ("rts_smooth", "Q", "None"),
 }
 
 
@@ -365,6 +375,18 @@ SPECIAL = [
     (lambda: trajectory.umeyama(ROUTE[:2], ROUTE[:2]), {"src"}),
     (lambda: trajectory.umeyama(np.ones((4, 3)), ROUTE), {"src"}),
     (lambda: trajectory.ate_rmse(ROUTE, ROUTE, align="affine"), {"align"}),
+    # align_poses: rotations that are not, a stack of another length, an unknown alignment
+    (lambda: trajectory.align_poses(ROUTE, -ROT4, ROUTE, ROT4), {"rotation[0]"}),
+    (lambda: trajectory.align_poses(ROUTE, ROT4, ROUTE, 1.1 * ROT4), {"ref_rotation[0]"}),
+    (lambda: trajectory.align_poses(ROUTE, ROT4[:3], ROUTE, ROT4), {"position"}),
+    (lambda: trajectory.align_poses(ROUTE, ROT4, ROUTE, ROT4[:3]), {"ref_rotation"}),
+    (lambda: trajectory.align_poses(ROUTE, ROT4, ROUTE, ROT4, align="se2"), {"align"}),
+    (lambda: trajectory.align_poses(ROUTE, ROT4, ROUTE, ROT4, "yaw", vertical_axis=3), {"vertical_axis"}),
+    # rts_smooth: a stack of F of another length than the record, a record that is not one
+    (lambda: kf.rts_smooth(HIST4, np.stack([F2] * 4)), {"F", "history"}),
+    (lambda: kf.rts_smooth(HIST4, np.ones((3, 3, 3))), {"F"}),
+    (lambda: kf.rts_smooth(None, F2), {"history"}),
+    (lambda: kf.rts_smooth(HIST4, F2, 0.1 * I2, B=np.ones((3, 2))), {"B"}),
 ]
 
 

@@ -177,7 +177,7 @@ def _observations(mems: MemsImuData, config: EskfConfig, kind: str, seed: int, g
     traj = mems.reference.trajectory
     position = np.column_stack([np.interp(t, traj.t, traj.position[:, i]) for i in range(3)])
     fixes = simulate_gnss(_Fixes(t, position), seed, config.gnss_std)
-    return {"gnss": fixes.observations(), "output_times": truth.t}
+    return {"gnss": fixes.observations(), "output_times": truth.t, "clip_output_times": True}
 
 
 @dataclass(frozen=True)

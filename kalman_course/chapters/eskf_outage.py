@@ -142,7 +142,7 @@ def _filter_through(ex, config, gnss, t0: float, t1: float):
     t_end = float(truth.t[np.searchsorted(truth.t, t1, side="right") - 1])
     times = np.union1d(truth.t, [t_start])
     res = eskf.run(ex.imu, s0, config, ex.gravity, gnss=_fixes_outside(gnss, t0, t1), start=k0,
-                   output_times=times).at(times)
+                   output_times=times, clip_output_times=True).at(times)
     return res, t_start, t_end
 
 

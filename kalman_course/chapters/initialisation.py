@@ -42,6 +42,8 @@ simulated (truth plus seeded noise).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import math
 from dataclasses import dataclass, field
 
@@ -51,7 +53,8 @@ from kalman_course.core import so3
 from kalman_course.core.linalg import symmetrise
 from kalman_course.core.imu import NavState, dead_reckon
 from kalman_course.core.observations import PoseObservations, PositionObservations
-from kalman_course.core.validation import as_real_array, as_rotation, as_rows, as_scalar, as_vector
+from kalman_course.core.validation import (as_covariance, as_real_array, as_rotation, as_rows, as_scalar,
+                                           as_vector, check_rotations)
 from kalman_course.data import simulate_gnss
 from kalman_course.evaluation import metrics
 from kalman_course.evaluation.pose import POSE_INDEX
@@ -128,9 +131,10 @@ def euler_from_rotation(R) -> np.ndarray:
     Returns an array of shape (3,) or (n, 3): φ = atan2(R₂₁, R₂₂), θ = −asin(R₂₀),
     ψ = atan2(R₁₀, R₀₀).
     """
-    R = np.asarray(R, dtype=float)
+    R = as_real_array(R, "R")
     if R.shape[-2:] != (3, 3) or R.ndim not in (2, 3) or not np.isfinite(R).all():
         raise ValueError(f"R must be a finite rotation matrix (3, 3) or a stack (n, 3, 3), got shape {R.shape}")
+    check_rotations(R, "R")
     roll = np.arctan2(R[..., 2, 1], R[..., 2, 2])
     pitch = -np.arcsin(np.clip(R[..., 2, 0], -1.0, 1.0))
     yaw = np.arctan2(R[..., 1, 0], R[..., 0, 0])
@@ -936,7 +940,7 @@ def run_errors(excerpt, initial, P0, k0: int, *, config="kitti_gnss", gnss=None,
     truth = excerpt.truth
     x0 = eskf.NominalState.from_nav(initial) if not isinstance(initial, eskf.NominalState) else initial
     res = eskf.run(excerpt.imu, x0, config, excerpt.gravity, gnss=gnss, lidar=lidar, start=k0, P0=P0,
-                   output_times=truth.t)
+                   output_times=truth.t, clip_output_times=True)
     r = res.at(truth.t)
     k = np.searchsorted(truth.t, r.t - 1e-6)
     t0 = float(excerpt.imu.t[k0])
@@ -983,6 +987,8 @@ def settling_time(t, values, threshold) -> float:
         last value exceeds it.
     """
     t = as_vector(t, "t")
+    if len(t) > 1 and not (np.diff(t) > 0).all():
+        raise ValueError(f"t must be strictly increasing, not at index {int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1}")
     values = as_vector(values, "values", len(t))
     threshold = as_scalar(threshold, "threshold", allow_zero=True)
     above = np.flatnonzero(values > threshold)
@@ -1168,9 +1174,9 @@ def scale_blocks(P0, factors) -> np.ndarray:
     -------
     numpy.ndarray, shape (15, 15)
     """
-    P0 = as_real_array(P0, "P0")
-    if P0.shape != (15, 15):
-        raise ValueError(f"P0 must have shape (15, 15), got {P0.shape}")
+    P0 = as_covariance(P0, "P0", 15, psd=True)
+    if not isinstance(factors, Mapping):
+        raise ValueError(f"factors must be a mapping of block name -> factor, got {type(factors).__name__}")
     d = np.ones(15)
     for name, factor in dict(factors).items():
         if name not in ERROR_BLOCKS:

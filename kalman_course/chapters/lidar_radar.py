@@ -24,7 +24,6 @@ w = [ν_a (m/s²), ν_ψ̈ (rad/s²)] held constant over a step. Bearings are wr
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from pathlib import Path
 from typing import Iterator
 
 import numpy as np
@@ -32,7 +31,8 @@ import numpy as np
 from kalman_course import symbolic
 from kalman_course.core.angles import wrap_angle
 from kalman_course.core.linalg import symmetrise
-from kalman_course.core.validation import as_covariance, as_flag, as_scalar, as_seed, as_vector
+from kalman_course.core.validation import (as_covariance, as_flag, as_path, as_real_array, as_rows, as_scalar,
+                                           as_seed, as_vector, require_file)
 from kalman_course.data.kitti import simulate_gnss
 from kalman_course.evaluation.metrics import nees, position_rmse, rmse
 from kalman_course.filters.ekf import (LIDAR_G, ekf_predict, ekf_update, iekf_update, lidar_observation,
@@ -331,10 +331,12 @@ def _parse_udacity_line(fields: list[str], where: str):
         raise ValueError(f"{where}: a '{letter}' line has {counts[0]} fields ({counts[1]} with the true yaw "
                          f"and yaw rate), got {len(fields)}")
     m = 2 if letter == "L" else 3
-    try:
-        numbers = [float(f) for f in fields[1:]]
-    except ValueError as err:
-        raise ValueError(f"{where}: {err}") from None
+    numbers = []
+    for k, text in enumerate(fields[1:], start=2):
+        try:
+            numbers.append(float(text))
+        except ValueError:
+            raise ValueError(f"{where}: field {k} must be a number, got {text!r}") from None
     if not np.isfinite(numbers).all():
         raise ValueError(f"{where}: every number must be finite, got {' '.join(fields[1:])}")
     if letter == "R" and abs(numbers[1]) > np.pi + _BEARING_SLACK:
@@ -347,6 +349,9 @@ def _parse_udacity_line(fields: list[str], where: str):
     except ValueError:
         raise ValueError(f"{where}: the timestamp (field {m + 2}) must be an integer number of µs, "
                          f"got {fields[m + 1]}") from None
+    if not 0 <= stamp < 2**62:                         # held as int64 µs, differences included
+        raise ValueError(f"{where}: the timestamp (field {m + 2}) must be a non-negative number of µs "
+                         f"below 2^62, got {fields[m + 1]}")
     px, py, vx, vy = numbers[m + 1:m + 5]
     if len(numbers) > m + 5:
         yaw, yaw_rate = numbers[m + 5:m + 7]
@@ -393,7 +398,7 @@ def read_udacity_log(path, *, R_lidar=R_LIDAR_DEFAULT, R_radar=R_RADAR_DEFAULT, 
         (with or without the yaw columns) differs from the first line's (a truncated line);
         the message names the file and the line number.
     """
-    path = Path(path)
+    path = require_file(as_path(path, "path"), "a Udacity lidar/radar log (text)")
     R_l = as_covariance(R_lidar, "R_lidar", 2, positive_definite=True)
     R_r = as_covariance(R_radar, "R_radar", 3, positive_definite=True)
     sigma_a = as_scalar(sigma_a, "sigma_a", allow_zero=True)
@@ -438,7 +443,7 @@ def read_udacity_log(path, *, R_lidar=R_LIDAR_DEFAULT, R_radar=R_RADAR_DEFAULT, 
 
 def ctrv_to_cartesian(states) -> np.ndarray:
     """[p_x, p_y, v_x, v_y] (N, 4) of CTRV states (N, 5), with v_x = v cos ψ, v_y = v sin ψ."""
-    s = np.asarray(states, dtype=float)
+    s = as_real_array(states, "states")
     if s.ndim != 2 or s.shape[1] != 5:
         raise ValueError(f"states must have shape (N, 5), got {s.shape}")
     return np.column_stack([s[:, 0], s[:, 1], s[:, 2] * np.cos(s[:, 3]), s[:, 2] * np.sin(s[:, 3])])
@@ -464,7 +469,7 @@ def initial_ctrv_state(z_lidar, R_lidar, sigma_v=5.0, sigma_yaw=np.pi, sigma_yaw
         diag(R_lidar, σ_v², σ_ψ², σ_ω²) (R_lidar as a block).
     """
     z = as_vector(z_lidar, "z_lidar", 2)
-    R = as_covariance(R_lidar, "R_lidar", 2)
+    R = as_covariance(R_lidar, "R_lidar", 2, psd=True)
     x0 = np.array([z[0], z[1], 0.0, 0.0, 0.0])
     P0 = np.zeros((5, 5))
     P0[:2, :2] = R
@@ -493,7 +498,7 @@ def radar_position_fix(z_radar, R_radar):
         bearing noise.
     """
     rho, phi, _ = as_vector(z_radar, "z_radar", 3)
-    R = as_covariance(R_radar, "R_radar", 3)
+    R = as_covariance(R_radar, "R_radar", 3, psd=True)
     c, s = np.cos(phi), np.sin(phi)
     J = np.array([[c, -rho * s], [s, rho * c]])
     R_p = J @ R[:2, :2] @ J.T
@@ -543,6 +548,8 @@ class FusionResult:
 
 def cartesian_rmse(estimate_cart, truth_cart) -> dict:
     """RMSE per component of [p_x, p_y, v_x, v_y] arrays (N, 4), as a dict px, py, vx, vy."""
+    estimate_cart = as_rows(estimate_cart, "estimate_cart", (4,))
+    truth_cart = as_rows(truth_cart, "truth_cart", (4,), len(estimate_cart))
     return dict(zip(("px", "py", "vx", "vy"), (float(e) for e in rmse(estimate_cart, truth_cart, axis=0))))
 
 

@@ -92,7 +92,7 @@ import numpy as np
 from kalman_course.core.observations import PoseObservations
 from kalman_course.core import so3
 from kalman_course.core.imu import NavState, dead_reckon
-from kalman_course.core.validation import as_scalar, as_seed, as_vector
+from kalman_course.core.validation import as_real_array, as_scalar, as_seed, as_vector
 from kalman_course.data.kitti import load_kitti
 from kalman_course.data.mems_imu import reference_imu
 from kalman_course.evaluation.drift import DriftResult, drift
@@ -222,8 +222,8 @@ def anchor(position, rotation, true_position, true_rotation, frame: int):
     position : numpy.ndarray, shape (K, 3)
     rotation : numpy.ndarray, shape (K, 3, 3)
     """
-    p = np.asarray(position, dtype=float)
-    R = np.asarray(rotation, dtype=float)
+    p = _finite(position, "position")
+    R = _finite(rotation, "rotation")
     if p.ndim != 2 or p.shape[1] != 3 or R.shape != (p.shape[0], 3, 3):
         raise ValueError(f"position must be (K, 3) and rotation (K, 3, 3), got {p.shape} and {R.shape}")
     if isinstance(frame, (bool, np.bool_)) or not isinstance(frame, (int, np.integer)) or not 0 <= frame < len(p):
@@ -231,6 +231,14 @@ def anchor(position, rotation, true_position, true_rotation, frame: int):
     p_true = as_vector(true_position, "true_position", 3)
     C = np.asarray(true_rotation, dtype=float) @ R[frame].T          # the correcting rotation
     return p_true + (p - p[frame]) @ C.T, C @ R
+
+
+def _finite(value, name: str) -> np.ndarray:
+    """``value`` as a float array of real, finite numbers; anything else is a ValueError naming ``name``."""
+    arr = as_real_array(value, name)
+    if not np.isfinite(arr).all():
+        raise ValueError(f"{name} must be finite, got NaN or inf")
+    return arr
 
 
 def setup(excerpt="seq00", system: str = "ORB-SLAM2", t_end: float | None = None) -> VoSetup:
@@ -329,7 +337,7 @@ def run_imu_gnss(s: VoSetup) -> eskf.EskfResult:
     """The reference without VO: the chapter-08 ESKF with the GNSS fixes, states at the VO frames."""
     ex = s.excerpt
     return eskf.run(ex.imu, s.initial, _CONFIG, ex.gravity, gnss=ex.gnss.observations(), start=s.start,
-                    t_end=s.t_stop, output_times=s.t)
+                    t_end=s.t_stop, output_times=s.t, clip_output_times=True)
 
 
 # ---------------------------------------------------------------------------------------
@@ -351,10 +359,12 @@ def block_nis(innovation, S, block: slice) -> np.ndarray:
     numpy.ndarray, shape (N,)
         χ² with (block length) degrees of freedom for a consistent filter.
     """
-    y = np.asarray(innovation, dtype=float)
-    S = np.asarray(S, dtype=float)
+    y = _finite(innovation, "innovation")
+    S = _finite(S, "S")
     if y.ndim != 2 or S.shape != (y.shape[0], y.shape[1], y.shape[1]):
         raise ValueError(f"innovation must be (N, m) and S (N, m, m), got {y.shape} and {S.shape}")
+    if not isinstance(block, slice):
+        raise ValueError(f"block must be a slice of the innovation's components, got {type(block).__name__}")
     return nis(y[:, block], S[:, block, block])
 
 
@@ -796,8 +806,8 @@ def white_increments(true_position, true_rotation, t, std, seed: int) -> PoseObs
     -------
     PoseObservations
     """
-    p_true = np.asarray(true_position, dtype=float)
-    R_true = np.asarray(true_rotation, dtype=float)
+    p_true = _finite(true_position, "true_position")
+    R_true = _finite(true_rotation, "true_rotation")
     t = as_vector(t, "t")
     if p_true.shape != (len(t), 3) or R_true.shape != (len(t), 3, 3) or len(t) < 2:
         raise ValueError(f"true_position must be (K, 3) and true_rotation (K, 3, 3) with K = len(t) ≥ 2, "
@@ -894,8 +904,8 @@ def yaw_error(rotation, true_rotation) -> np.ndarray:
     rotation, true_rotation : array_like, shape (K, 3, 3)
         Estimated and true attitudes R_nb.
     """
-    R = np.asarray(rotation, dtype=float)
-    R_true = np.asarray(true_rotation, dtype=float)
+    R = _finite(rotation, "rotation")
+    R_true = _finite(true_rotation, "true_rotation")
     if R.ndim != 3 or R.shape[1:] != (3, 3) or R_true.shape != R.shape:
         raise ValueError(f"rotation and true_rotation must both be (K, 3, 3), got {R.shape} and {R_true.shape}")
     dtheta = so3.log(np.swapaxes(R_true, 1, 2) @ R)
@@ -912,8 +922,8 @@ def yaw_variance(rotation, P) -> np.ndarray:
     P : array_like, shape (K, 15, 15)
         Covariances of the ESKF error state (attitude block rows 6:9).
     """
-    R = np.asarray(rotation, dtype=float)
-    P = np.asarray(P, dtype=float)
+    R = _finite(rotation, "rotation")
+    P = _finite(P, "P")
     if R.ndim != 3 or R.shape[1:] != (3, 3) or P.shape != (len(R), 15, 15):
         raise ValueError(f"rotation must be (K, 3, 3) and P (K, 15, 15), got {R.shape} and {P.shape}")
     up = R[:, 2, :]
@@ -1215,7 +1225,7 @@ def clock_offset_runs(s: VoSetup, std, offsets=(-0.02, -0.01, 0.0, 0.01, 0.02), 
 
 def rotation_increments(rotation) -> np.ndarray:
     """Rotation vectors Log(R_{k−1}ᵀ R_k) (K−1, 3), rad, of consecutive attitudes (K, 3, 3)."""
-    R = np.asarray(rotation, dtype=float)
+    R = _finite(rotation, "rotation")
     if R.ndim != 3 or R.shape[1:] != (3, 3) or len(R) < 2:
         raise ValueError(f"rotation must be (K, 3, 3) with K ≥ 2, got {R.shape}")
     return so3.log(np.swapaxes(R[:-1], 1, 2) @ R[1:])
@@ -1322,8 +1332,8 @@ def tilt_misalignment(dtheta_vo, dtheta_gyro) -> tuple[np.ndarray, np.ndarray]:
     offset : numpy.ndarray, shape (3,)
         c, rad per interval.
     """
-    a = np.asarray(dtheta_vo, dtype=float)
-    g = np.asarray(dtheta_gyro, dtype=float)
+    a = _finite(dtheta_vo, "dtheta_vo")
+    g = _finite(dtheta_gyro, "dtheta_gyro")
     if a.ndim != 2 or a.shape[1] != 3 or g.shape != a.shape or len(a) < 5:
         raise ValueError(f"dtheta_vo and dtheta_gyro must both be (M, 3) with M ≥ 5, got {a.shape} and {g.shape}")
     A = np.zeros((len(a), 3, 5))

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kalman_course.core import so3
-from kalman_course.core.validation import as_matrix, as_rotation, as_vector
+from kalman_course.core.validation import as_int, as_matrix, as_rotation, as_vector
 
 __all__ = ["NavState", "NavTrajectory", "integrate_midpoint", "midpoint_step", "dead_reckon"]
 
@@ -79,6 +79,18 @@ class NavTrajectory:
 
 def _bias(value, name: str) -> np.ndarray:
     return np.zeros(3) if value is None else as_vector(value, name, 3)
+
+
+def _seconds(dt) -> float:
+    """``dt`` as a finite positive float; a string, a bool or an array is a ValueError."""
+    try:
+        ok = (not isinstance(dt, (bool, np.bool_, str, bytes)) and np.ndim(dt) == 0
+              and not np.iscomplexobj(dt) and np.isfinite(float(dt)) and float(dt) > 0.0)
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+    return float(dt)
 
 
 def _check_state(state: NavState, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -175,9 +187,7 @@ def midpoint_step(state: NavState, f0, w0, f1, w1, dt: float, gravity,
     w0, w1 = as_vector(w0, "w0", 3), as_vector(w1, "w1", 3)
     g = as_vector(gravity, "gravity", 3)
     b_a, b_w = _bias(accel_bias, "accel_bias"), _bias(gyro_bias, "gyro_bias")
-    dt = float(dt)
-    if not np.isfinite(dt) or dt <= 0.0:
-        raise ValueError(f"dt must be a positive number of seconds, got {dt}")
+    dt = _seconds(dt)
     ps, vs, Rs = integrate_midpoint(p, v, R, np.stack([f0 - b_a, f1 - b_a]), (0.5 * (w0 + w1) - b_w)[None, :],
                                     np.array([dt]), g)
     return NavState(ps[1], vs[1], Rs[1])
@@ -215,7 +225,7 @@ def dead_reckon(imu, initial_state: NavState, gravity, accel_bias=None, gyro_bia
     n_all = len(t_all)
     f_all = as_matrix(imu.specific_force, "imu.specific_force", (n_all, 3))
     w_all = as_matrix(imu.angular_rate, "imu.angular_rate", (n_all, 3))
-    sl = slice(start, stop)
+    sl = slice(as_int(start, "start"), as_int(stop, "stop", allow_none=True))
     t, f, w = t_all[sl], f_all[sl], w_all[sl]
     if len(t) == 0:
         raise ValueError(f"start={start}, stop={stop} select no samples of imu (it has {n_all})")

@@ -228,6 +228,27 @@ def whitened_update(P_check: np.ndarray, Z: np.ndarray, out: np.ndarray | None =
     return symmetrise(P_check - Z.T.dot(Z), out)
 
 
+def _as_square(value, name: str) -> np.ndarray:
+    """``value`` as a finite, non-empty square float matrix, else a ValueError naming ``name``.
+
+    (``core.validation`` imports this module, so its helpers cannot be used here.)
+    """
+    try:
+        arr = np.asarray(value)
+        ok = arr.dtype.kind in "iuf"
+    except (TypeError, ValueError):            # a ragged list
+        arr, ok = None, False
+    if not ok:
+        shown = f"dtype {arr.dtype}" if arr is not None else "a ragged list"
+        raise ValueError(f"{name} must be a square matrix (n, n) of real numbers, got {shown}")
+    if arr.ndim != 2 or arr.shape[0] != arr.shape[1] or arr.shape[0] == 0:
+        raise ValueError(f"{name} must be a non-empty square matrix (n, n), got shape {arr.shape}")
+    if not np.isfinite(arr).all():
+        row, col = np.argwhere(~np.isfinite(arr))[0]
+        raise ValueError(f"{name} must be finite, got NaN or inf at [{row}, {col}]")
+    return arr.astype(float, copy=False)
+
+
 def expm(A: np.ndarray) -> np.ndarray:
     """Matrix exponential e^A by scaling and squaring a Taylor series (numpy only).
 
@@ -236,13 +257,19 @@ def expm(A: np.ndarray) -> np.ndarray:
 
     Parameters
     ----------
-    A : numpy.ndarray, shape (n, n)
+    A : array_like, shape (n, n)
+        A finite square matrix.
 
     Returns
     -------
     numpy.ndarray, shape (n, n)
+
+    Raises
+    ------
+    ValueError
+        If ``A`` is not a finite, non-empty square matrix of real numbers.
     """
-    A = np.asarray(A, dtype=float)
+    A = _as_square(A, "A")
     norm = np.linalg.norm(A, 1)
     squarings = max(0, int(np.ceil(np.log2(norm / 0.5)))) if norm > 0.5 else 0
     scaled = A / 2.0**squarings

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kalman_course.core.validation import ROTATION_TOL, as_rows
+from kalman_course.core.validation import ROTATION_TOL, as_rows, check_rotations
 
 __all__ = ["PositionObservations", "PoseObservations"]
 
@@ -48,32 +48,6 @@ def _as_times(t) -> np.ndarray:
         raise ValueError(f"t must be strictly increasing: t[{k}] = {arr[k]:g} <= "
                          f"t[{k - 1}] = {arr[k - 1]:g}")
     return arr
-
-
-def _check_rotations(R: np.ndarray, name: str) -> None:
-    """Raise ValueError naming the first matrix of ``R`` (..., 3, 3) that is not in SO(3).
-
-    ``name`` is the label of the whole stack; the message appends the index of the bad
-    matrix (``rotation[3]``), or nothing for a single (3, 3) matrix.
-    """
-    stack = R.reshape(-1, 3, 3)
-    if stack.shape[0] == 0:
-        return
-
-    def label(k: int) -> str:
-        return name if R.ndim == 2 else f"{name}[{k}]"
-
-    error = np.abs(np.swapaxes(stack, -1, -2) @ stack - np.eye(3)).max(axis=(-2, -1))
-    bad = error > ROTATION_TOL
-    if bad.any():
-        k = int(np.argmax(bad))
-        raise ValueError(f"{label(k)} is not a rotation matrix "
-                         f"(|RᵀR − I| = {error[k]:.3g}, tolerance {ROTATION_TOL:g})")
-    det = np.linalg.det(stack)
-    if (det <= 0.0).any():
-        k = int(np.argmax(det <= 0.0))
-        raise ValueError(f"{label(k)} is a reflection, not a rotation (det = {det[k]:.3g}, "
-                         "expected +1)")
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -146,21 +120,56 @@ class PositionObservations:
         Raises
         ------
         ValueError
-            If a boolean mask does not have shape (K,), or the indices would put the times
-            out of order.
+            Naming ``which``: a boolean mask that does not have shape (K,), an index out of
+            range, indices that are not integers (floats, strings) or not 1-D, or indices
+            that would put the times out of order (decreasing or repeated).
         """
-        if not isinstance(which, slice):
-            which = np.asarray(which)
-            if which.dtype == bool and which.shape != (len(self),):
-                raise ValueError(f"which must be a boolean mask of shape ({len(self)},), "
-                                 f"got shape {which.shape}")
+        rows = _selected_rows(which, len(self))
         K = len(self)
         fields = {}
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
             per_row = isinstance(value, np.ndarray) and value.ndim >= 1 and value.shape[0] == K
-            fields[f.name] = value[which] if per_row else value    # e.g. a subclass's noise level
+            fields[f.name] = value[rows] if per_row else value    # e.g. a subclass's noise level
         return type(self)(**fields)
+
+
+def _selected_rows(which, K: int) -> np.ndarray:
+    """The increasing row indices (n,) that ``which`` (slice, bool mask (K,) or indices) picks."""
+    expected = f"a slice, a boolean mask of shape ({K},) or integer row indices"
+    if isinstance(which, slice):
+        try:
+            return _increasing(np.arange(K)[which])
+        except (TypeError, ValueError) as exc:          # float bounds, a zero step
+            raise ValueError(f"which must be {expected}; the slice {which!r} is not valid ({exc})") from None
+    try:
+        arr = np.asarray(which)
+    except (TypeError, ValueError):                     # a ragged list
+        arr = None
+    if arr is None or arr.dtype.kind not in "biu" and not (arr.size == 0 and arr.dtype.kind == "f"):
+        kind = f"dtype {arr.dtype}" if arr is not None else "a ragged list"
+        raise ValueError(f"which must be {expected}, got {kind}: {which!r:.60}")
+    if arr.dtype == bool:
+        if arr.shape != (K,):
+            raise ValueError(f"which must be a boolean mask of shape ({K},), got shape {arr.shape}")
+        return np.flatnonzero(arr)
+    if arr.ndim != 1:
+        raise ValueError(f"which must be {expected} (1-D), got shape {arr.shape}")
+    arr = arr.astype(np.int64)
+    outside = (arr < -K) | (arr >= K)
+    if outside.any():
+        raise ValueError(f"which must hold row indices in [-{K}, {K}), got {int(arr[np.argmax(outside)])}")
+    return _increasing(np.where(arr < 0, arr + K, arr))
+
+
+def _increasing(arr: np.ndarray) -> np.ndarray:
+    """``arr`` if its row indices increase strictly, else a ValueError naming ``which``."""
+    step = np.diff(arr)
+    if (step <= 0).any():
+        k = int(np.argmax(step <= 0))
+        raise ValueError(f"which must pick rows in increasing order (t must be strictly increasing): "
+                         f"row {arr[k + 1]} after row {arr[k]}")
+    return arr
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -199,5 +208,5 @@ class PoseObservations(PositionObservations):
     def __post_init__(self) -> None:
         super().__post_init__()
         rotation = as_rows(self.rotation, "rotation", (3, 3), len(self), count="K")
-        _check_rotations(rotation, "rotation")
+        check_rotations(rotation, "rotation")
         object.__setattr__(self, "rotation", _readonly(rotation))

@@ -13,6 +13,15 @@ Conventions used throughout the course
   the same rotation as ``quat_to_matrix(q)``. ``matrix_to_quat`` returns the
   representative with ``w >= 0``.
 
+Roll, pitch and yaw: ``from_rpy`` and ``to_rpy``, R_nb = Rz(yaw) Ry(pitch) Rx(roll) (intrinsic
+z-y'-x''), radians.
+
+Every function that needs a rotation matrix (``log``, ``angle``, ``interpolate``,
+``matrix_to_quat``, ``to_rpy``) refuses one that is not: max |RᵀR − I| above
+:data:`~kalman_course.core.validation.ROTATION_TOL` (a scaled or sheared matrix) or det R ≤ 0
+(a reflection), with a ValueError naming the argument and, in a stack, the index of the
+first bad matrix. ``orthonormalise`` is what turns a nearly orthonormal matrix into one.
+
 Every function accepts a single element or a stack along leading axes: a vector has
 shape (..., 3), a matrix (..., 3, 3), a quaternion (..., 4). Results keep the leading
 axes. Only numpy is used.
@@ -21,8 +30,8 @@ These are the course's only SO(3) kernels (the filters use them in their inner l
 each map has two paths with the same thresholds (:data:`SMALL_ANGLE`, :data:`NEAR_PI`)
 and the same Taylor series: one for a single element, in Python floats (a filter calls it
 once per update, where numpy's per-call cost would dominate), and one for a stack, in
-numpy. Every function validates its arguments; ``exp``, ``log``, ``hat`` and
-``left_jacobian`` take ``check=False`` for callers that validated at their own boundary.
+numpy. Every function validates its arguments; ``exp``, ``log``, ``hat``, ``left_jacobian``
+and ``angle`` take ``check=False`` for callers that validated at their own boundary.
 """
 
 from __future__ import annotations
@@ -31,18 +40,22 @@ import math
 
 import numpy as np
 
+from kalman_course.core.validation import ROTATION_TOL, check_rotations
+
 __all__ = [
     "hat", "vee", "exp", "log", "Exp", "Log",
     "right_jacobian", "right_jacobian_inv", "left_jacobian", "left_jacobian_inv",
-    "orthonormalise", "is_rotation", "interpolate", "angle",
+    "orthonormalise", "is_rotation", "as_rotations", "interpolate", "angle",
     "quat_to_matrix", "matrix_to_quat", "quat_multiply", "quat_conjugate",
-    "quat_normalise", "quat_exp",
+    "quat_normalise", "quat_exp", "from_rpy", "to_rpy",
 ]
 
 #: Below this rotation angle (rad) the closed forms switch to Taylor series.
 SMALL_ANGLE = 1e-4
 #: Above π minus this margin (rad) ``log`` takes the axis from the symmetric part.
 NEAR_PI = 1e-2
+#: :func:`to_rpy` treats a rotation with |cos(pitch)| below this as gimbal-locked.
+GIMBAL_LOCK = 1e-8
 
 
 def _stack(value, name: str, tail: tuple[int, ...]) -> np.ndarray:
@@ -62,6 +75,51 @@ def _stack(value, name: str, tail: tuple[int, ...]) -> np.ndarray:
     if not math.isfinite(np.add.reduce(arr, axis=None)) and not np.isfinite(arr).all():
         raise ValueError(f"{name} must be finite, got NaN or inf")
     return arr
+
+
+def as_rotations(value, name: str) -> np.ndarray:
+    """Return ``value`` as a float array of rotation matrices, shape (3, 3) or (..., 3, 3).
+
+    The rule is the project's (:func:`~kalman_course.core.validation.as_rotation` for one
+    matrix, :class:`~kalman_course.core.observations.PoseObservations` for a record):
+    max |RᵀR − I| ≤ :data:`~kalman_course.core.validation.ROTATION_TOL` (1e-6) and
+    det R > 0, which rejects a scaled, sheared or far-from-orthonormal matrix and a
+    reflection.
+
+    Parameters
+    ----------
+    value : array_like, shape (3, 3) or (..., 3, 3)
+        Candidate rotation matrix or stack.
+    name : str
+        Argument name used in error messages.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3, 3) or (..., 3, 3)
+        ``value`` itself when it is a float64 ndarray, else a converted copy.
+
+    Raises
+    ------
+    ValueError
+        If ``value`` has the wrong shape or holds a NaN or inf, or a matrix is not a
+        rotation; a stack's first bad matrix is named by its index, for example
+        ``rotation[4] is a reflection, not a rotation (det = -1, expected +1)`` or
+        ``R is not a rotation matrix (|RᵀR − I| = 0.21, tolerance 1e-06)``.
+    """
+    R = _stack(value, name, (3, 3))
+    check_rotations(R, name)
+    return R
+
+
+def _is_rotation_entries(r00, r01, r02, r10, r11, r12, r20, r21, r22) -> bool:
+    """The rule of :func:`as_rotations` for one matrix given as floats (the fast path of
+    :func:`log`, which has the entries already): max |RᵀR − I| ≤ ROTATION_TOL, det > 0."""
+    # the six distinct entries of RᵀR − I: column norms minus one, column dot products
+    gram = max(abs(r00 * r00 + r10 * r10 + r20 * r20 - 1.0), abs(r01 * r01 + r11 * r11 + r21 * r21 - 1.0),
+               abs(r02 * r02 + r12 * r12 + r22 * r22 - 1.0), abs(r00 * r01 + r10 * r11 + r20 * r21),
+               abs(r00 * r02 + r10 * r12 + r20 * r22), abs(r01 * r02 + r11 * r12 + r21 * r22))
+    det = r00 * (r11 * r22 - r12 * r21) - r01 * (r10 * r22 - r12 * r20) + r02 * (r10 * r21 - r11 * r20)
+    return gram <= ROTATION_TOL and det > 0.0
 
 
 # ---------------------------------------------------------------------------------------
@@ -254,20 +312,36 @@ def log(R, *, check: bool = True) -> np.ndarray:
     Parameters
     ----------
     R : array_like, shape (..., 3, 3)
-        Rotation matrix/matrices (assumed orthonormal; see :func:`orthonormalise`).
+        Rotation matrix/matrices: max |RᵀR − I| ≤ ``ROTATION_TOL`` (1e-6) and det R = +1.
+        A matrix further from SO(3), such as one printed with few digits, can be projected
+        onto it first with :func:`orthonormalise`.
     check : bool, keyword-only
-        Validate the argument (default). A filter's inner loop that validated its inputs
-        at its own boundary passes False to skip the check (a float64 ndarray is required then).
+        Validate the argument (default): its shape, that it is finite, and that each
+        matrix is a rotation. A filter's inner loop that validated its inputs at its own
+        boundary passes False to skip the check (a float64 ndarray is required then; the
+        result for a matrix that is not a rotation is then meaningless, e.g. 0 for a
+        reflection).
 
     Returns
     -------
     numpy.ndarray, shape (..., 3)
         Rotation vector(s) φ in radians with |φ| ∈ [0, π].
+
+    Raises
+    ------
+    ValueError
+        With ``check``: if ``R`` has the wrong shape, holds a NaN or inf, or a matrix is
+        not orthonormal (``R is not a rotation matrix (|RᵀR − I| = 0.2, ...)``) or is a
+        reflection (``R[3] is a reflection, not a rotation (det = -1, ...)``).
     """
     if check:
         R = _stack(R, "R", (3, 3))
+        if R.ndim != 2:
+            check_rotations(R, "R")
     if R.ndim == 2:
         (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = R.tolist()
+        if check and not _is_rotation_entries(r00, r01, r02, r10, r11, r12, r20, r21, r22):
+            check_rotations(R, "R")                    # raises, with the project's message
         sx, sy, sz = 0.5 * (r21 - r12), 0.5 * (r02 - r20), 0.5 * (r10 - r01)   # sin θ · a
         sin_t = math.sqrt(sx * sx + sy * sy + sz * sz)
         theta = math.atan2(sin_t, 0.5 * (r00 + r11 + r22 - 1.0))
@@ -396,9 +470,15 @@ def is_rotation(R, tol: float = 1e-9) -> bool:
     return bool(err <= tol and np.all(np.linalg.det(R) > 0))
 
 
-def angle(R) -> np.ndarray:
-    """Rotation angle θ ∈ [0, π] in radians of each matrix in ``R`` (..., 3, 3)."""
-    R = _stack(R, "R", (3, 3))
+def angle(R, *, check: bool = True) -> np.ndarray:
+    """Rotation angle θ ∈ [0, π] in radians of each matrix in ``R`` (..., 3, 3).
+
+    Raises ValueError if a matrix of ``R`` is not a rotation (the rule of :func:`log`).
+    ``check=False`` skips the validation, for a caller whose ``R`` is a product of
+    rotations it validated (a product of matrices each 1e-6 from SO(3) can be 2e-6 from it).
+    """
+    if check:
+        R = as_rotations(R, "R")
     sin_t = np.linalg.norm(vee(R), axis=-1)
     cos_t = 0.5 * (np.trace(R, axis1=-2, axis2=-1) - 1.0)
     return np.arctan2(sin_t, cos_t)
@@ -417,16 +497,22 @@ def interpolate(R0, R1, alpha) -> np.ndarray:
     Returns
     -------
     numpy.ndarray, shape (..., 3, 3)
+
+    Raises
+    ------
+    ValueError
+        If ``R0`` or ``R1`` is not a rotation (the rule of :func:`log`), or ``alpha`` is not
+        finite.
     """
-    R0 = _stack(R0, "R0", (3, 3))
-    R1 = _stack(R1, "R1", (3, 3))
+    R0 = as_rotations(R0, "R0")
+    R1 = as_rotations(R1, "R1")
     try:
         alpha = np.asarray(alpha, dtype=float)
     except (TypeError, ValueError):
         raise ValueError(f"alpha must be a number or an array of numbers, got {alpha!r}") from None
     if not np.isfinite(alpha).all():
         raise ValueError("alpha must be finite, got NaN or inf")
-    delta = log(np.swapaxes(R0, -1, -2) @ R1)
+    delta = log(np.swapaxes(R0, -1, -2) @ R1, check=False)        # both validated above
     return R0 @ exp(alpha[..., None] * delta)
 
 
@@ -492,8 +578,11 @@ def matrix_to_quat(R) -> np.ndarray:
 
     Uses Shepperd's method: each quaternion is computed from the largest of 1 + tr R and
     1 + 2R_ii − tr R, so no division by a small number occurs.
+
+    Raises ValueError if a matrix of ``R`` is not a rotation (the rule of :func:`log`): the
+    method returns a plausible unit quaternion for any matrix, e.g. (0, 1, 0, 0) for −I.
     """
-    R = _stack(R, "R", (3, 3))
+    R = as_rotations(R, "R")
     r00, r11, r22 = R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]
     tr = r00 + r11 + r22
     cand = np.stack([1.0 + tr, 1.0 + 2 * r00 - tr, 1.0 + 2 * r11 - tr, 1.0 + 2 * r22 - tr], -1)
@@ -528,3 +617,108 @@ def quat_exp(phi) -> np.ndarray:
     t = np.where(small, 1.0, theta)
     half_sinc = np.where(small, _series_half_sinc(theta * theta), np.sin(0.5 * t) / t)
     return np.concatenate([np.cos(0.5 * theta)[..., None], half_sinc[..., None] * phi], axis=-1)
+
+
+# ---------------------------------------------------------------------------------------
+# Roll, pitch, yaw
+# ---------------------------------------------------------------------------------------
+
+def _angles(value, name: str) -> np.ndarray:
+    """``value`` as a finite float array (any shape) of angles in radians, |angle| ≤ 2π."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be an angle in radians (a number or an array of numbers), "
+                         f"got {type(value).__name__}") from None
+    if not np.isfinite(arr).all():
+        raise ValueError(f"{name} must be finite, got NaN or inf")
+    if arr.size and np.abs(arr).max() > 2.0 * math.pi:
+        worst = float(arr.flat[np.argmax(np.abs(arr))])
+        raise ValueError(f"{name} must be in radians, |{name}| ≤ 2π, got {worst:g} "
+                         f"(degrees? convert with np.deg2rad)")
+    return arr
+
+
+def from_rpy(roll, pitch, yaw) -> np.ndarray:
+    """Rotation matrix R_nb of roll, pitch and yaw angles: ``R = Rz(yaw) Ry(pitch) Rx(roll)``.
+
+    The convention is the intrinsic z-y'-x'' sequence (the aerospace one): turn the
+    navigation frame by yaw about its z axis, the result by pitch about its new y axis, and
+    that by roll about its newest x axis; ``Rx(a) = Exp(a e_x)`` and so on, each a
+    right-handed (anticlockwise) turn.
+
+    Parameters
+    ----------
+    roll, pitch, yaw : float or array_like, shape (...)
+        The angles in radians, broadcast against each other; each |angle| ≤ 2π. Any
+        pitch is a rotation, but :func:`to_rpy` returns pitch in [−π/2, π/2] and roll and
+        yaw in (−π, π], so a round trip gives the same angles only inside those ranges.
+
+    Returns
+    -------
+    numpy.ndarray, shape (..., 3, 3)
+        R_nb (body to navigation), one matrix per broadcast element.
+
+    Raises
+    ------
+    ValueError
+        If an angle is not a finite number, the three do not broadcast, or an angle
+        exceeds 2π in magnitude (a hint that it is in degrees).
+    """
+    roll, pitch, yaw = _angles(roll, "roll"), _angles(pitch, "pitch"), _angles(yaw, "yaw")
+    try:
+        roll, pitch, yaw = np.broadcast_arrays(roll, pitch, yaw)
+    except ValueError:
+        raise ValueError(f"roll, pitch and yaw must broadcast to one shape, got shapes {roll.shape}, "
+                         f"{pitch.shape} and {yaw.shape}") from None
+    cr, sr = np.cos(roll), np.sin(roll)
+    cp, sp = np.cos(pitch), np.sin(pitch)
+    cy, sy = np.cos(yaw), np.sin(yaw)
+    rows = [[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr]]
+    return np.stack([np.stack(row, -1) for row in rows], -2)
+
+
+def to_rpy(R) -> np.ndarray:
+    """Roll, pitch and yaw (radians) of rotation matrices, the inverse of :func:`from_rpy`.
+
+    With ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (intrinsic z-y'-x''):
+    pitch = atan2(−R₂₀, √(R₂₁² + R₂₂²)) ∈ [−π/2, π/2], roll = atan2(R₂₁, R₂₂) ∈ (−π, π],
+    yaw = atan2(R₁₀, R₀₀) ∈ (−π, π].
+
+    Gimbal lock: at pitch = ±π/2 only yaw ∓ roll is defined. Where |cos pitch| <
+    :data:`GIMBAL_LOCK` (1e-8, |pitch| within 1e-8 rad of π/2) the function returns roll = 0
+    and puts the whole turn about the vertical into yaw = atan2(−R₀₁, R₁₁). ``from_rpy`` of
+    the result then reproduces R to within about 1e-8 (the entries the dropped roll would
+    set, |cos pitch| · |sin roll| and |cos pitch| · |1 − cos roll|, are below GIMBAL_LOCK).
+    Outside that band the general formulas reproduce R to about round-off / |cos pitch|,
+    also below about 1e-8. Near the lock the separate roll and yaw are ill-conditioned
+    whichever the formula: a change of ε in R moves them by about ε / |cos pitch|.
+
+    Parameters
+    ----------
+    R : array_like, shape (..., 3, 3)
+        Rotation matrices R_nb (the rule of :func:`log`: max |RᵀR − I| ≤ ROTATION_TOL,
+        det +1).
+
+    Returns
+    -------
+    numpy.ndarray, shape (..., 3)
+        (roll, pitch, yaw) along the last axis, radians.
+
+    Raises
+    ------
+    ValueError
+        If ``R`` has the wrong shape, is not finite, or a matrix is not a rotation (the
+        first such matrix of a stack is named by its index).
+    """
+    R = as_rotations(R, "R")
+    cos_pitch = np.hypot(R[..., 2, 1], R[..., 2, 2])
+    pitch = np.arctan2(-R[..., 2, 0], cos_pitch)
+    locked = cos_pitch < GIMBAL_LOCK
+    roll = np.where(locked, 0.0, np.arctan2(R[..., 2, 1], R[..., 2, 2]))
+    yaw = np.where(locked, np.arctan2(-R[..., 0, 1], R[..., 1, 1]), np.arctan2(R[..., 1, 0], R[..., 0, 0]))
+    # atan2 returns −π for a negative zero; the documented range is (−π, π]
+    roll, yaw = (np.where(a == -np.pi, np.pi, a) for a in (roll, yaw))
+    return np.stack([roll, pitch, yaw], -1)

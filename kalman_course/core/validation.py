@@ -23,6 +23,10 @@ indefinite matrix such as [[1, 2], [2, 1]], eigenvalues 3 and −1, fails); with
 
 from __future__ import annotations
 
+import math
+import os
+from pathlib import Path
+
 import numpy as np
 
 from kalman_course.core.linalg import symmetrise
@@ -146,7 +150,10 @@ def as_rows(value, name: str, tail: tuple[int, ...] = (), n: int | None = None, 
     want = f"({rows},)" if not tail else "(" + ", ".join([rows, *map(str, tail)]) + ")"
     expected = f"a 1-D array of shape {want}" if not tail else f"a numeric array of shape {want}"
     try:
-        arr = np.asarray(value, dtype=np.float64)
+        arr = np.asarray(value)
+        if arr.dtype.kind == "c":                # complex: numpy would drop the imaginary part
+            raise TypeError(name)
+        arr = arr.astype(np.float64, copy=False)
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be {expected}, got {_short_repr(value)}") from None
     if arr.shape[1:] != tuple(tail) or arr.ndim != 1 + len(tail) or (n is not None and arr.shape[0] != n):
@@ -159,7 +166,7 @@ def as_rows(value, name: str, tail: tuple[int, ...] = (), n: int | None = None, 
     return arr
 
 
-def as_real_array(value, name: str) -> np.ndarray:
+def as_real_array(value, name: str, *, allow_empty: bool = False) -> np.ndarray:
     """Return ``value`` as a non-empty float array of any shape; NaN and inf are kept.
 
     For functions that define what NaN means themselves (a missing measurement, an
@@ -171,6 +178,8 @@ def as_real_array(value, name: str) -> np.ndarray:
         Real numbers, any shape.
     name : str
         Argument name used in error messages.
+    allow_empty : bool
+        If True, an empty array is returned as it is (an empty batch of angles).
 
     Returns
     -------
@@ -181,10 +190,10 @@ def as_real_array(value, name: str) -> np.ndarray:
     ------
     ValueError
         If ``value`` holds no real numbers (a string, complex numbers, ``None``, a ragged
-        list) or is empty.
+        list) or is empty (unless ``allow_empty``).
     """
     arr = _as_float_array(value, name, "an array")
-    if arr.size == 0:
+    if arr.size == 0 and not allow_empty:
         raise ValueError(f"{name} must not be empty, got shape {arr.shape}")
     return arr
 
@@ -410,3 +419,102 @@ def as_rotation(value, name: str) -> np.ndarray:
         raise ValueError(f"{name} must be a rotation matrix (RᵀR = I within {ROTATION_TOL:g}, det +1), "
                          f"got max |RᵀR − I| = {error:.3g}, det = {det:.3g}")
     return R
+
+
+def check_rotations(R: np.ndarray, name: str) -> None:
+    """Raise ValueError naming the first matrix of ``R`` (a float array (3, 3) or (..., 3, 3))
+    that is not a rotation: max |RᵀR − I| above :data:`ROTATION_TOL` (scaled, sheared, far
+    from orthonormal) or det R ≤ 0 (a reflection).
+
+    ``name`` labels the whole array; a stack's message adds the index of the bad matrix
+    (``rotation[3] is a reflection, not a rotation (det = -1, expected +1)``).
+    """
+    stack = R.reshape(-1, 3, 3)
+    if stack.shape[0] == 0:
+        return
+    error = np.abs(np.swapaxes(stack, -1, -2) @ stack - np.eye(3)).max(axis=(-2, -1))
+    det = np.linalg.det(stack)
+    bad = (error > ROTATION_TOL) | (det <= 0.0)
+    if not bad.any():
+        return
+    k = int(np.argmax(bad))
+    label = name if R.ndim == 2 else f"{name}[{', '.join(map(str, np.unravel_index(k, R.shape[:-2])))}]"
+    if error[k] > ROTATION_TOL:
+        raise ValueError(f"{label} is not a rotation matrix (|RᵀR − I| = {error[k]:.3g}, tolerance {ROTATION_TOL:g})")
+    raise ValueError(f"{label} is a reflection, not a rotation (det = {det[k]:.3g}, expected +1)")
+
+
+def as_rotations(value, name: str, n: int | None = None, *, count: str = "K") -> np.ndarray:
+    """Return ``value`` as a stack of rotation matrices, shape (n, 3, 3).
+
+    Each matrix must be a rotation by the rule of :func:`check_rotations`, whose message
+    names the first one that is not.
+
+    Parameters
+    ----------
+    value : array_like, shape (n, 3, 3)
+        The stack.
+    name : str
+        Argument name used in error messages.
+    n : int, optional
+        Required number of matrices; None accepts any.
+    count : str
+        The letter that names the number of matrices in messages.
+
+    Raises
+    ------
+    ValueError
+        If ``value`` holds no real numbers, has another shape, holds a NaN or inf, or a
+        matrix that is not a rotation (not orthonormal, or a reflection).
+    """
+    R = as_rows(value, name, (3, 3), n, count=count)
+    check_rotations(R, name)
+    return R
+
+
+def as_int(value, name: str, *, minimum: int | None = None, allow_none: bool = False) -> int | None:
+    """Return ``value`` as a Python int (not a bool, not a float), at least ``minimum``.
+
+    ``allow_none`` lets ``None`` through (an optional slice bound); anything else that is
+    not an integer is a ValueError naming ``name``.
+    """
+    if value is None and allow_none:
+        return None
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        what = "an integer" + (" or None" if allow_none else "")
+        raise ValueError(f"{name} must be {what}, got {_short_repr(value)}")
+    if minimum is not None and value < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {int(value)}")
+    return int(value)
+
+
+def as_real(value, name: str) -> float:
+    """Return ``value`` as a finite float (any sign); strings, bools and arrays are a ValueError."""
+    if not isinstance(value, (bool, np.bool_, str, bytes)):
+        try:
+            v = float(value) if np.ndim(value) == 0 and not np.iscomplexobj(value) else None
+        except (TypeError, ValueError):
+            v = None
+        if v is not None and math.isfinite(v):
+            return v
+    raise ValueError(f"{name} must be a finite real number, got {_short_repr(value)}")
+
+
+def as_path(value, name: str) -> Path:
+    """Return ``value`` (a str or path-like) as a Path; anything else is a ValueError naming ``name``."""
+    if isinstance(value, (str, os.PathLike)) and str(os.fspath(value)):
+        return Path(value)
+    raise ValueError(f"{name} must be a file path (str or pathlib.Path), got {_short_repr(value)}")
+
+
+def require_file(path: Path, what: str) -> Path:
+    """Raise unless ``path`` is an existing regular file: FileNotFoundError if it is missing,
+    ValueError if it is a directory or something else; both messages name the path and ``what``
+    it should have been (``a KITTI excerpt file``)."""
+    if path.is_file():
+        return path
+    if path.is_dir():
+        raise ValueError(f"{path} is a directory, not {what}")
+    if path.exists():
+        raise ValueError(f"{path} is not a regular file, not {what}")
+    raise FileNotFoundError(f"{path}: no such file ({what})")

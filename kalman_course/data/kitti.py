@@ -31,6 +31,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+import os
 import zipfile
 import zlib
 from dataclasses import dataclass, field
@@ -41,7 +42,7 @@ import numpy as np
 from kalman_course.core import so3
 from kalman_course.core.imu import NavState, NavTrajectory
 from kalman_course.core.observations import PoseObservations, PositionObservations
-from kalman_course.core.validation import as_scalar, as_seed
+from kalman_course.core.validation import as_path, as_rotations, as_rows, as_scalar, as_seed, require_file
 from kalman_course.data.observation_errors import ObservationErrors, WhiteErrors
 
 __all__ = [
@@ -450,14 +451,18 @@ class KittiExcerpt:
 # Noise generators
 # ---------------------------------------------------------------------------------------
 
-def _rotations_of(record, name: str) -> np.ndarray:
+def _rotations_of(record, name: str, K: int) -> np.ndarray:
+    """The K attitudes of ``record`` (its ``rotation`` or, failing that, its ``quaternion``), checked."""
     if hasattr(record, "rotation"):
-        R = np.asarray(record.rotation, dtype=float)
-    elif hasattr(record, "quaternion"):
-        R = so3.quat_to_matrix(record.quaternion)
-    else:
-        raise ValueError(f"{name} must have a rotation (K, 3, 3) or quaternion (K, 4) attribute")
-    return R
+        return as_rotations(record.rotation, f"{name}.rotation", K)
+    if hasattr(record, "quaternion"):
+        q = as_rows(record.quaternion, f"{name}.quaternion", (4,), K)
+        norm = np.linalg.norm(q, axis=1)
+        if K and np.abs(norm - 1.0).max() > 1e-6:
+            k = int(np.argmax(np.abs(norm - 1.0)))
+            raise ValueError(f"{name}.quaternion[{k}] must be a unit quaternion (w, x, y, z), got |q| = {norm[k]:.6g}")
+        return so3.quat_to_matrix(q)
+    raise ValueError(f"{name} must have a rotation (K, 3, 3) or quaternion (K, 4) attribute")
 
 
 def simulate_lidar_poses(truth, seed: int, sigma_position: float = 0.2,
@@ -510,19 +515,26 @@ def simulate_lidar_poses(truth, seed: int, sigma_position: float = 0.2,
     for attr in ("t", "position"):
         if not hasattr(truth, attr):
             raise ValueError(f"truth must have t (K,) and position (K, 3); missing {attr!r}")
-    t = np.asarray(truth.t, dtype=float)
-    p = np.asarray(truth.position, dtype=float)
-    R = _rotations_of(truth, "truth")
+    t = _increasing_times(truth.t, "truth.t")
     K = len(t)
-    if t.shape != (K,) or p.shape != (K, 3) or R.shape != (K, 3, 3):
-        raise ValueError(f"truth fields must have shapes t (K,), position (K, 3), rotation (K, 3, 3); "
-                         f"got {t.shape}, {p.shape}, {R.shape}")
+    p = as_rows(truth.position, "truth.position", (3,), K)
+    R = _rotations_of(truth, "truth", K)
     draw = errors.draw(t, np.random.default_rng(seed))
     position = p + draw.position
     rotation = R @ so3.exp(draw.attitude)
     quaternion = so3.matrix_to_quat(rotation)
     return LidarData(t, position, so3.quat_to_matrix(quaternion), quaternion, errors.sigma_position,
                      errors.sigma_attitude_deg, seed, error_model=errors.describe(), failures=draw.failures)
+
+
+def _increasing_times(value, name: str) -> np.ndarray:
+    """``value`` as finite, strictly increasing times (K,), else a ValueError naming ``name``."""
+    t = as_rows(value, name, count="K")
+    step = np.diff(t)
+    if (step <= 0.0).any():
+        k = int(np.argmax(step <= 0.0)) + 1
+        raise ValueError(f"{name} must be strictly increasing: {name}[{k}] = {t[k]:g} <= {name}[{k - 1}] = {t[k - 1]:g}")
+    return t
 
 
 def _lidar_error_model(errors, sigma_position: float, sigma_attitude_deg: float) -> ObservationErrors:
@@ -566,10 +578,8 @@ def simulate_gnss(gnss, seed: int, sigma: float = 1.0) -> GnssData:
     for attr in ("t", noise_free):
         if not hasattr(gnss, attr):
             raise ValueError(f"gnss must have t (M,) and {noise_free} (M, 3); missing {attr!r}")
-    t = np.asarray(gnss.t, dtype=float)
-    p = np.asarray(getattr(gnss, noise_free), dtype=float)
-    if t.ndim != 1 or p.shape != (len(t), 3):
-        raise ValueError(f"gnss fields must have shapes t (M,), {noise_free} (M, 3); got {t.shape}, {p.shape}")
+    t = as_rows(gnss.t, "gnss.t", count="M")
+    p = as_rows(getattr(gnss, noise_free), f"gnss.{noise_free}", (3,), len(t), count="M")
     rng = np.random.default_rng(seed)
     noisy = p + sigma * rng.standard_normal(p.shape)
     return GnssData(t.copy(), p.copy(), noisy, sigma, seed)
@@ -585,7 +595,16 @@ def kitti_dir() -> Path:
 
 
 def file_sha256(path) -> str:
-    """Hex sha256 of the bytes of the file at ``path``."""
+    """Hex sha256 of the bytes of the file at ``path``.
+
+    Raises
+    ------
+    FileNotFoundError
+        If there is no file at ``path``.
+    ValueError
+        If ``path`` is not a path, or names a directory.
+    """
+    path = require_file(as_path(path, "path"), "a file to checksum")
     h = hashlib.sha256()
     with open(path, "rb") as fh:
         for chunk in iter(lambda: fh.read(1 << 20), b""):
@@ -602,7 +621,9 @@ def read_manifest(path=None) -> dict:
         ``{"schema_version": int, "files": {file name: {"sha256", "size", "schema_version",
         ...}}}``.
     """
-    path = Path(path) if path is not None else kitti_dir() / "MANIFEST.json"
+    path = as_path(path, "path") if path is not None else kitti_dir() / "MANIFEST.json"
+    if path.is_dir():
+        raise ValueError(f"{path} is a directory, not a manifest (MANIFEST.json)")
     if not path.is_file():
         raise FileNotFoundError(f"{path}: manifest not found (rebuild the data with "
                                 f"`python -m kalman_course.data.build`)")
@@ -610,18 +631,35 @@ def read_manifest(path=None) -> dict:
         manifest = json.loads(path.read_text(encoding="utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ValueError(f"{path}: manifest is not valid JSON ({exc})") from None
-    files = manifest.get("files") if isinstance(manifest, dict) else None
-    if not isinstance(files, dict):
-        raise ValueError(f"{path}: manifest must hold an object 'files' mapping file names to entries")
-    for fname, entry in files.items():
-        if not isinstance(entry, dict) or not {"sha256", "size", "schema_version"} <= set(entry):
-            raise ValueError(f"{path}: manifest entry {fname!r} must have sha256, size and schema_version")
+    _check_manifest(manifest, str(path))
     return manifest
 
 
+def _check_manifest(manifest, where: str) -> None:
+    """Raise a ValueError naming ``where`` unless ``manifest`` has the layout :func:`read_manifest` returns."""
+    files = manifest.get("files") if isinstance(manifest, dict) else None
+    if not isinstance(files, dict):
+        raise ValueError(f"{where}: manifest must hold an object 'files' mapping file names to entries")
+    for fname, entry in files.items():
+        if not isinstance(entry, dict) or not {"sha256", "size", "schema_version"} <= set(entry):
+            raise ValueError(f"{where}: manifest entry {fname!r} must have sha256, size and schema_version")
+        sha, size, version = entry["sha256"], entry["size"], entry["schema_version"]
+        if not isinstance(sha, str) or len(sha) != 64:
+            raise ValueError(f"{where}: manifest entry {fname!r}: sha256 must be 64 hex digits, got {sha!r}")
+        for key, value in (("size", size), ("schema_version", version)):
+            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                raise ValueError(f"{where}: manifest entry {fname!r}: {key} must be a non-negative integer, "
+                                 f"got {value!r}")
+
+
 def _verify_against_manifest(path: Path, manifest) -> None:
-    if not isinstance(manifest, dict):
+    if isinstance(manifest, dict):
+        _check_manifest(manifest, "manifest")
+    elif isinstance(manifest, (str, os.PathLike)):
         manifest = read_manifest(manifest)
+    else:
+        raise ValueError(f"manifest must be None, a parsed manifest (dict) or the path of a MANIFEST.json, "
+                         f"got {type(manifest).__name__}")
     entry = manifest["files"].get(path.name)
     if entry is None:
         raise ValueError(f"{path}: not listed in the manifest (listed: {', '.join(sorted(manifest['files']))})")
@@ -642,7 +680,10 @@ def _verify_against_manifest(path: Path, manifest) -> None:
 
 def _read_arrays(path: Path) -> dict[str, np.ndarray]:
     try:
-        with np.load(path, allow_pickle=False) as npz:
+        loaded = np.load(path, allow_pickle=False)
+        if not isinstance(loaded, np.lib.npyio.NpzFile):      # a single .npy array
+            raise ValueError(f"it holds one array of shape {np.shape(loaded)}, not an archive of fields")
+        with loaded as npz:
             return {key: npz[key] for key in npz.files}
     except (zipfile.BadZipFile, zlib.error, EOFError, OSError, ValueError, KeyError) as exc:
         raise ValueError(f"{path}: file is truncated or corrupt, not a readable .npz archive "
@@ -654,12 +695,16 @@ def _check_schema(path: Path, arrays: dict[str, np.ndarray]) -> dict:
     if missing:
         raise ValueError(f"{path}: missing field {missing[0]!r}"
                          + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""))
+    if arrays["meta"].dtype.kind != "U" or arrays["meta"].shape != ():
+        raise ValueError(f"{path}: field 'meta' must be one JSON text, got dtype {arrays['meta'].dtype} and "
+                         f"shape {arrays['meta'].shape}")
     try:
         meta = json.loads(str(arrays["meta"]))
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path}: field 'meta' is not valid JSON ({exc})") from None
     if not isinstance(meta, dict) or any(k not in meta for k in _META_KEYS):
         raise ValueError(f"{path}: field 'meta' must be an object with keys {', '.join(_META_KEYS)}")
+    _check_meta_types(path, meta)
     if meta["schema_version"] != SCHEMA_VERSION:
         raise ValueError(f"{path}: schema version {meta['schema_version']}, this loader reads version "
                          f"{SCHEMA_VERSION}")
@@ -700,7 +745,36 @@ def _check_schema(path: Path, arrays: dict[str, np.ndarray]) -> dict:
         err = np.abs(np.linalg.norm(arrays[key], axis=1) - 1.0).max()
         if err > 1e-9:
             raise ValueError(f"{path}: field {key!r} must hold unit quaternions (max | |q| − 1 | = {err:.3g})")
+    for key in ("frames/R_cam_imu", "frames/R_nav_world"):
+        try:
+            as_rotations(arrays[key][None], key)
+        except ValueError as exc:
+            raise ValueError(f"{path}: field {exc}") from None
     return meta
+
+
+def _check_meta_types(path: Path, meta: dict) -> None:
+    """The metadata fields the loader reads, each of the type it reads (a ValueError naming file and field)."""
+    def bad(field: str, expected: str, value):
+        raise ValueError(f"{path}: metadata {field} must be {expected}, got {value!r:.60}")
+
+    if not isinstance(meta["name"], str):
+        bad("name", "a string", meta["name"])
+    version = meta["schema_version"]
+    if isinstance(version, bool) or not isinstance(version, int):
+        bad("schema_version", "an integer", version)
+    tau = meta["tau_range"]
+    if (not isinstance(tau, list) or len(tau) != 2 or any(isinstance(v, bool) or not isinstance(v, (int, float))
+                                                          or not np.isfinite(v) for v in tau)):
+        bad("tau_range", "a list of two finite numbers (start, end) in s", tau)
+    if not isinstance(meta["provenance"], dict):
+        bad("provenance", "an object", meta["provenance"])
+    for section in ("gnss", "lidar"):
+        if not isinstance(meta[section], dict):
+            bad(section, "an object", meta[section])
+        seed = meta[section].get("seed")
+        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+            bad(f"{section}.seed", "a non-negative integer", seed)
 
 
 def load_excerpt_file(path, manifest=None) -> KittiExcerpt:
@@ -726,7 +800,9 @@ def load_excerpt_file(path, manifest=None) -> KittiExcerpt:
         If the file is truncated, corrupt, fails its checksum, or lacks a field or has one
         of the wrong shape; the message names the file and the problem.
     """
-    path = Path(path)
+    path = as_path(path, "path")
+    if path.is_dir():
+        raise ValueError(f"{path} is a directory, not a KITTI excerpt file (.npz)")
     if not path.is_file():
         raise FileNotFoundError(f"{path}: KITTI excerpt file not found (rebuild the data with "
                                 f"`python -m kalman_course.data.build`)")
@@ -788,8 +864,9 @@ def load_kitti(name: str) -> KittiExcerpt:
     KittiExcerpt
         Arrays are read-only; repeated loads of an unchanged file return the same object.
     """
-    if name not in EXCERPTS:
-        raise ValueError(f"unknown KITTI excerpt {name!r}; valid names: {', '.join(EXCERPTS)}")
+    if not isinstance(name, str) or name not in EXCERPTS:
+        raise ValueError(f"unknown KITTI excerpt {name!r}; valid names: {', '.join(EXCERPTS)} "
+                         f"(name must be one of them; load_excerpt_file reads a file by its path)")
     folder = kitti_dir()
     path = folder / f"{name}.npz"
     if not path.is_file():

@@ -95,7 +95,7 @@ import numpy as np
 
 from kalman_course.core import so3
 from kalman_course.core.imu import NavState, NavTrajectory
-from kalman_course.core.validation import as_rows, as_scalar, as_seed, as_vector
+from kalman_course.core.validation import as_rotations, as_rows, as_scalar, as_seed, as_vector
 
 __all__ = ["MemsSpec", "CONSUMER_MEMS", "STANDARD_GRAVITY", "SmoothTruth", "ReferenceImu", "MemsImuData",
            "reference_imu", "gauss_markov_drift", "simulate_mems_imu"]
@@ -423,26 +423,29 @@ class ReferenceImu:
         return len(self.t)
 
 
-def _check_excerpt(excerpt):
-    """(IMU times (N,), truth t (K,), position (K, 3), rotation (K, 3, 3), gravity (3,))."""
+def _check_excerpt(excerpt, name: str = "excerpt"):
+    """(IMU times (N,), truth t (K,), position (K, 3), rotation (K, 3, 3), gravity (3,)).
+
+    ``name`` is the argument the record was passed as (``excerpt``, ``source``), for the messages.
+    """
     for attr in ("imu", "truth", "gravity"):
         if not hasattr(excerpt, attr):
-            raise ValueError(f"excerpt must have imu, truth and gravity (a KittiExcerpt); missing {attr!r}")
+            raise ValueError(f"{name} must have imu, truth and gravity (a KittiExcerpt); missing {attr!r}")
     truth = excerpt.truth
     for attr in ("t", "position", "rotation"):
         if not hasattr(truth, attr):
-            raise ValueError(f"excerpt.truth must have t, position and rotation; missing {attr!r}")
+            raise ValueError(f"{name}.truth must have t, position and rotation; missing {attr!r}")
     if not hasattr(excerpt.imu, "t"):
-        raise ValueError("excerpt.imu must have t (N,), the IMU timestamps")
-    t_imu = as_rows(excerpt.imu.t, "excerpt.imu.t")
-    t_truth = as_rows(truth.t, "excerpt.truth.t")
+        raise ValueError(f"{name}.imu must have t (N,), the IMU timestamps")
+    t_imu = as_rows(excerpt.imu.t, f"{name}.imu.t")
+    t_truth = as_rows(truth.t, f"{name}.truth.t")
     K = len(t_truth)
-    position = as_rows(truth.position, "excerpt.truth.position", (3,), K)
-    rotation = as_rows(truth.rotation, "excerpt.truth.rotation", (3, 3), K)
-    gravity = as_vector(excerpt.gravity, "excerpt.gravity", 3)
-    for name, t in (("excerpt.imu.t", t_imu), ("excerpt.truth.t", t_truth)):
+    position = as_rows(truth.position, f"{name}.truth.position", (3,), K)
+    rotation = as_rotations(truth.rotation, f"{name}.truth.rotation", K, count="N")
+    gravity = as_vector(excerpt.gravity, f"{name}.gravity", 3)
+    for label, t in ((f"{name}.imu.t", t_imu), (f"{name}.truth.t", t_truth)):
         if len(t) < 2 or (np.diff(t) <= 0.0).any():
-            raise ValueError(f"{name} must hold at least 2 strictly increasing times")
+            raise ValueError(f"{label} must hold at least 2 strictly increasing times")
     return t_imu, t_truth, position, rotation, gravity
 
 
@@ -473,7 +476,12 @@ def reference_imu(excerpt, knot_spacing: float = 0.3) -> ReferenceImu:
         yaw–pitch–roll angles would be ill-conditioned), or no IMU sample lies in the
         truth's span.
     """
-    t_imu, t_truth, position, rotation, gravity = _check_excerpt(excerpt)
+    return _reference(excerpt, knot_spacing, "excerpt")
+
+
+def _reference(excerpt, knot_spacing, name: str) -> ReferenceImu:
+    """:func:`reference_imu`, its messages naming the excerpt ``name`` (the caller's argument)."""
+    t_imu, t_truth, position, rotation, gravity = _check_excerpt(excerpt, name)
     spacing = as_scalar(knot_spacing, "knot_spacing")
     longest = float(np.diff(t_truth).max())
     if spacing < 2.0 * longest:
@@ -481,11 +489,13 @@ def reference_imu(excerpt, knot_spacing: float = 0.3) -> ReferenceImu:
                          f"({2.0 * longest:.3g} s), got {spacing:g}")
     angles = _yaw_pitch_roll(rotation)
     if np.abs(angles[:, 1]).max() > np.deg2rad(60.0):
-        raise ValueError("excerpt.truth.rotation pitches beyond ±60°: the yaw–pitch–roll "
+        raise ValueError(f"{name}.truth.rotation pitches beyond ±60°: the yaw–pitch–roll "
                          "reference is meant for a ground vehicle")
     inside = (t_imu >= t_truth[0]) & (t_imu <= t_truth[-1])
     if inside.sum() < 2:
-        raise ValueError("fewer than two IMU timestamps lie inside the truth's time span")
+        raise ValueError(f"fewer than two IMU timestamps lie inside the truth's time span: {name}.imu.t "
+                         f"covers [{t_imu[0]:.4f}, {t_imu[-1]:.4f}] s, {name}.truth.t "
+                         f"[{t_truth[0]:.4f}, {t_truth[-1]:.4f}] s")
     t = t_imu[inside].copy()
 
     p_spline = _fit_spline(t_truth, position, spacing)
@@ -605,8 +615,8 @@ class MemsImuData:
         gyro_bias : numpy.ndarray, shape (n, 3)
             rad/s.
         """
-        tq = as_rows(np.atleast_1d(times), "times")
-        if tq.min() < self.t[0] or tq.max() > self.t[-1]:
+        tq = as_rows([times] if np.isscalar(times) else times, "times")
+        if tq.size and (tq.min() < self.t[0] or tq.max() > self.t[-1]):
             raise ValueError(f"times must lie inside [{self.t[0]:.4f}, {self.t[-1]:.4f}] s, got values in "
                              f"[{tq.min():.4f}, {tq.max():.4f}]")
 
@@ -619,6 +629,19 @@ class MemsImuData:
 #: Longest stretch, in correlation times, that :func:`gauss_markov_drift` sums in closed
 #: form: the factors exp(±s) it uses stay within e^±30.
 _GM_BLOCK = 30.0
+
+
+def _as_normals(normals, rows: int) -> np.ndarray:
+    """``normals`` as a finite float array of shape (rows, m), else a ValueError naming it."""
+    try:
+        n = np.asarray(normals)
+        ok = n.dtype.kind in "iuf" and n.ndim == 2 and n.shape[0] == rows and bool(np.isfinite(n).all())
+    except (TypeError, ValueError):                      # a ragged list
+        n, ok = None, False
+    if not ok:
+        shown = f"shape {n.shape}, dtype {n.dtype}" if n is not None else repr(normals)[:60]
+        raise ValueError(f"normals must be a finite real array of shape ({rows}, m), one row per step, got {shown}")
+    return n.astype(float, copy=False)
 
 
 def gauss_markov_drift(t, sigma: float, time_constant: float, normals) -> np.ndarray:
@@ -659,10 +682,7 @@ def gauss_markov_drift(t, sigma: float, time_constant: float, normals) -> np.nda
         raise ValueError("t must hold at least 2 strictly increasing times")
     sigma = as_scalar(sigma, "sigma")
     tau = as_scalar(time_constant, "time_constant")
-    n = np.asarray(normals, dtype=float)
-    if n.ndim != 2 or n.shape[0] != len(t) - 1 or not np.isfinite(n).all():
-        raise ValueError(f"normals must be a finite array of shape ({len(t) - 1}, m), got "
-                         f"{getattr(n, 'shape', None)}")
+    n = _as_normals(normals, len(t) - 1)
     elapsed = (t - t[0]) / tau
     step = np.diff(elapsed)
     w = sigma * np.sqrt(-np.expm1(-2.0 * step))[:, None] * n        # σ √(1 − φ²) n
@@ -716,7 +736,7 @@ def simulate_mems_imu(source, spec: MemsSpec = CONSUMER_MEMS, seed: int = 0, *,
     if not isinstance(spec, MemsSpec):
         raise ValueError(f"spec must be a MemsSpec (for example CONSUMER_MEMS), got {type(spec).__name__}")
     seed = as_seed(seed)
-    ref = source if isinstance(source, ReferenceImu) else reference_imu(source, knot_spacing)
+    ref = source if isinstance(source, ReferenceImu) else _reference(source, knot_spacing, "source")
     t = ref.t
     n = len(t)
     dt_nom = float(np.median(np.diff(t)))

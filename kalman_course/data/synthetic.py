@@ -22,9 +22,13 @@ import numpy as np
 from kalman_course.core import so3
 from kalman_course.data.kitti import ImuData
 from kalman_course.core.imu import NavState, dead_reckon
-from kalman_course.core.validation import as_scalar, as_seed, as_vector
+from kalman_course.core.validation import as_real, as_scalar, as_seed, as_vector
 
 __all__ = ["RandomWalk1D", "random_walk_1d", "CVTarget", "cv_target", "ImuScenario", "imu_trajectory"]
+
+
+#: Most samples :func:`imu_trajectory` makes (a day at 100 Hz is 8.6e6): a larger duration·rate is a unit slip.
+_MAX_SAMPLES = 1e8
 
 
 def _count(value, name: str) -> int:
@@ -90,7 +94,7 @@ def random_walk_1d(n_steps: int, q: float, r: float, seed: int, x0: float = 0.0)
     n = _count(n_steps, "n_steps")
     q = as_scalar(q, "q", allow_zero=True)
     r = as_scalar(r, "r", allow_zero=True)
-    x0 = float(x0)
+    x0 = as_real(x0, "x0")
     rng = np.random.default_rng(as_seed(seed))
     w = np.sqrt(q) * rng.standard_normal(n)
     v = np.sqrt(r) * rng.standard_normal(n)
@@ -183,8 +187,8 @@ def cv_target(n_steps: int, dt: float, sigma_a: float, sigma_meas: float, seed: 
     dt = as_scalar(dt, "dt")
     sigma_a = as_scalar(sigma_a, "sigma_a", allow_zero=True)
     sigma_meas = as_scalar(sigma_meas, "sigma_meas", allow_zero=True)
-    if dim not in (1, 2, 3):
-        raise ValueError(f"dim must be 1, 2 or 3, got {dim!r}")
+    if isinstance(dim, (bool, np.bool_)) or not isinstance(dim, (int, np.integer)) or dim not in (1, 2, 3):
+        raise ValueError(f"dim must be 1, 2 or 3 (an integer), got {dim!r}")
     d = int(dim)
     x0 = np.concatenate([np.zeros(d), np.ones(d)]) if x0 is None else as_vector(x0, "x0", 2 * d)
     I, Z = np.eye(d), np.zeros((d, d))
@@ -377,7 +381,11 @@ def imu_trajectory(seed: int, duration: float = 60.0, rate: float = 100.0,
     b_a0 = as_vector(accel_bias0, "accel_bias0", 3)
     b_w0 = as_vector(gyro_bias0, "gyro_bias0", 3)
     g = as_vector(gravity, "gravity", 3)
-    n = int(round(duration * rate)) + 1
+    samples = duration * rate
+    if not np.isfinite(samples) or samples > _MAX_SAMPLES:
+        raise ValueError(f"duration·rate must give at most {_MAX_SAMPLES:.0e} samples, got duration={duration:g} s, "
+                         f"rate={rate:g} Hz")
+    n = int(round(samples)) + 1
     if n < 2:
         raise ValueError(f"duration·rate must give at least two samples, got duration={duration}, rate={rate}")
     t = np.arange(n) / rate

@@ -18,10 +18,15 @@ __all__ = ["heading_tilt_error"]
 
 
 def _rotations(value, name: str) -> np.ndarray:
-    R = np.asarray(value, dtype=float)
+    """``value`` as a rotation (3, 3) or a stack (K, 3, 3); ValueError naming the bad matrix."""
+    try:
+        R = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a rotation (3, 3) or stack (K, 3, 3) of numbers, "
+                         f"got {type(value).__name__}") from None
     if R.shape[-2:] != (3, 3) or R.ndim not in (2, 3) or not np.isfinite(R).all():
         raise ValueError(f"{name} must be a finite rotation (3, 3) or stack (K, 3, 3), got shape {R.shape}")
-    return R
+    return so3.as_rotations(R, name)
 
 
 def heading_tilt_error(rotation, rotation_true) -> tuple[np.ndarray, np.ndarray]:
@@ -45,13 +50,16 @@ def heading_tilt_error(rotation, rotation_true) -> tuple[np.ndarray, np.ndarray]
     Raises
     ------
     ValueError
-        If the two are not finite (3, 3) matrices or stacks of the same shape.
+        If the two are not finite (3, 3) matrices or stacks of the same shape, or a matrix
+        is not a rotation (max |RᵀR − I| above
+        :data:`~kalman_course.core.validation.ROTATION_TOL`, or a reflection); the message
+        names the argument and, in a stack, the index of the first bad matrix.
     """
     R = _rotations(rotation, "rotation")
     R_true = _rotations(rotation_true, "rotation_true")
     if R.shape != R_true.shape:
         raise ValueError(f"rotation and rotation_true must have the same shape, got {R.shape} and {R_true.shape}")
-    dtheta_n = so3.log(R @ np.swapaxes(R_true, -1, -2))
+    dtheta_n = so3.log(R @ np.swapaxes(R_true, -1, -2), check=False)   # both validated above
     heading = np.rad2deg(dtheta_n[..., 2])
     tilt = np.rad2deg(np.hypot(dtheta_n[..., 0], dtheta_n[..., 1]))
     return heading, tilt

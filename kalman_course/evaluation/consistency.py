@@ -23,7 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kalman_course.core.validation import as_covariance, as_scalar, as_vector
+from kalman_course.core.validation import (SYMMETRY_RTOL, as_covariance, as_real_array, as_scalar,
+                                           as_vector)
 from kalman_course.evaluation import metrics
 
 __all__ = ["Consistency", "summarise", "verdict", "VERDICTS", "gate_threshold", "gate",
@@ -106,10 +107,7 @@ def summarise(values, dof: int, n_runs: int = 1, confidence: float = 0.95) -> Co
         ``n_runs`` or ``confidence`` is out of range.
     """
     dof, n_runs, confidence = _dof(dof), _dof(n_runs, "n_runs"), _confidence(confidence)
-    try:
-        v = np.asarray(values, dtype=float).ravel()
-    except (TypeError, ValueError):
-        raise ValueError(f"values must be an array of numbers, got {type(values).__name__}") from None
+    v = as_real_array(values, "values", allow_empty=True).ravel()
     v = v[~np.isnan(v)]
     if v.size == 0:
         raise ValueError("values must contain at least one non-NaN value")
@@ -191,10 +189,7 @@ def gate(innovation, S, confidence: float = 0.99) -> bool:
 
 def _runs_by_time(values, name: str) -> np.ndarray:
     """``values`` as a finite float array of shape (n_runs, K): one row per independent run."""
-    try:
-        v = np.array(values, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be an array of numbers, got {type(values).__name__}") from None
+    v = np.array(as_real_array(values, name, allow_empty=True))
     if v.ndim == 1:
         v = v[None, :]
     if v.ndim != 2 or v.shape[1] < 1 or v.shape[0] < 1:
@@ -425,15 +420,17 @@ def innovation_whiteness(innovation, S, max_lag: int = 10, confidence: float = 0
         positive definite, or ``max_lag`` or ``confidence`` out of range.
     """
     confidence = _confidence(confidence)
-    try:
-        nu = np.array(innovation, dtype=float)
-        S_arr = np.array(S, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError("innovation and S must be arrays of numbers") from None
+    nu = np.array(as_real_array(innovation, "innovation"))
+    S_arr = np.array(as_real_array(S, "S"))
     if nu.ndim != 2 or S_arr.shape != (nu.shape[0], nu.shape[1], nu.shape[1]):
         raise ValueError(f"need innovation (N, m) and S (N, m, m); got innovation {nu.shape}, S {S_arr.shape}")
     if not (np.isfinite(nu).all() and np.isfinite(S_arr).all()):
         raise ValueError("innovation and S must be finite (no NaN or inf)")
+    asym = np.abs(S_arr - np.swapaxes(S_arr, 1, 2)).max(axis=(1, 2))
+    unsymmetric = asym > SYMMETRY_RTOL * np.abs(S_arr).max(axis=(1, 2))      # (0 > 0 for a zero S_k)
+    if unsymmetric.any():
+        k = int(np.argmax(unsymmetric))
+        raise ValueError(f"S must be symmetric at every step; S[{k}] is not (max |S - S.T| = {asym[k]:.3g})")
     N, m = nu.shape
     L = _dof(max_lag, "max_lag")
     if L >= N:

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kalman_course.core import so3
-from kalman_course.core.validation import as_matrix, as_vector
+from kalman_course.core.validation import as_matrix, as_rows, as_vector
 
 __all__ = ["SEGMENT_LENGTHS", "KITTI_STEP", "DriftResult", "path_distance", "segments", "drift"]
 
@@ -90,11 +90,7 @@ class DriftResult:
 
 def _rotations(value, name: str, K: int) -> np.ndarray:
     """``value`` as rotation matrices of shape (K, 3, 3); ValueError naming ``name`` otherwise."""
-    R = np.asarray(value, dtype=float)
-    if R.shape != (K, 3, 3):
-        raise ValueError(f"{name} must have shape ({K}, 3, 3), one rotation per frame, got {R.shape}")
-    if not np.isfinite(R).all():
-        raise ValueError(f"{name} must be finite, got NaN or inf")
+    R = as_rows(value, name, (3, 3), K)          # real numbers, one (3, 3) per frame, finite (names the row)
     if not so3.is_rotation(R, tol=1e-6):
         raise ValueError(f"{name} must hold rotation matrices (orthonormal, det +1, to 1e-6)")
     return R

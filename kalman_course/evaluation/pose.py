@@ -33,14 +33,20 @@ TIME_TOL = 1e-6
 _RPE_SLACK = 1e-3
 
 
-def _rotations(value, name: str, K: int) -> np.ndarray:
-    """Return ``value`` as a finite float array of shape (K, 3, 3)."""
-    R = np.asarray(value, dtype=float)
-    if R.shape != (K, 3, 3):
-        raise ValueError(f"{name} must have shape ({K}, 3, 3), one matrix per time, got {R.shape}")
-    if not np.isfinite(R).all():
-        raise ValueError(f"{name} must be finite, got NaN or inf")
-    return R
+def _rotations(value, name: str, K: int | None = None) -> np.ndarray:
+    """Return ``value`` as K rotation matrices (K, 3, 3) (any K ≥ 1 when K is None).
+
+    A matrix that is not a rotation (scaled, sheared, a reflection) is named by its index,
+    ``rotation[12] is a reflection, not a rotation (det = -1, ...)``.
+    """
+    try:
+        R = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a numeric array of shape (K, 3, 3), got {type(value).__name__}") from None
+    if R.ndim != 3 or R.shape[1:] != (3, 3) or (K is not None and R.shape[0] != K) or R.shape[0] == 0:
+        want = f"({K}, 3, 3), one matrix per time" if K is not None else "(N, 3, 3)"
+        raise ValueError(f"{name} must have shape {want}, got {R.shape}")
+    return so3.as_rotations(R, name)
 
 
 def _truth_index(t: np.ndarray, truth_t: np.ndarray) -> np.ndarray:
@@ -56,7 +62,7 @@ def _truth_index(t: np.ndarray, truth_t: np.ndarray) -> np.ndarray:
 
 def _rms_angle(R_error: np.ndarray) -> float:
     """RMS rotation angle of the error rotations (N, 3, 3), degrees."""
-    theta = so3.angle(R_error)
+    theta = so3.angle(R_error, check=False)      # products of validated rotations
     return float(np.rad2deg(rmse(theta, np.zeros_like(theta), axis=None)))
 
 
@@ -96,8 +102,11 @@ def evaluate(t, position, rotation, truth, P=None, rpe_delta: float = 1.0) -> di
     Raises
     ------
     ValueError
-        If an argument has the wrong shape or is not finite, a time is not one of the
-        truth's, or a covariance is not symmetric positive definite.
+        If an argument has the wrong shape or is not finite, a matrix of ``rotation`` or
+        ``truth.rotation`` is not a rotation (max |RᵀR − I| above
+        :data:`~kalman_course.core.validation.ROTATION_TOL`, or a reflection; the message
+        names its index), a time is not one of the truth's, or a covariance is not
+        symmetric positive definite.
     """
     t = as_vector(t, "t")
     K = t.shape[0]
@@ -114,10 +123,10 @@ def evaluate(t, position, rotation, truth, P=None, rpe_delta: float = 1.0) -> di
 
     k = _truth_index(t, np.asarray(truth.t, dtype=float))
     p_true = np.asarray(truth.position, dtype=float)[k]
-    R_true = np.asarray(truth.rotation, dtype=float)[k]
+    R_true = _rotations(truth.rotation, "truth.rotation")[k]
     position_error = p - p_true
     R_error = np.swapaxes(R_true, -1, -2) @ R
-    attitude_error = so3.log(R_error)
+    attitude_error = so3.log(R_error, check=False)     # a product of validated rotations
     out = {
         # the absolute trajectory error without alignment: sqrt(mean_k |p_k − p_true,k|²)
         "ape_position": ate_rmse(p, p_true, align="none"),

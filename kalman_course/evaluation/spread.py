@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kalman_course.core.validation import as_vector
+from kalman_course.core.validation import as_real, as_vector
 
 __all__ = ["Spread", "spread"]
 
@@ -40,8 +40,8 @@ class Spread:
         return len(self.values)
 
     def count_above(self, bar: float) -> int:
-        """How many values exceed ``bar`` (strictly), in the sample's unit."""
-        return int(np.sum(np.asarray(self.values) > float(bar)))
+        """How many values exceed ``bar`` (strictly), in the sample's unit; ``bar`` must be a finite number."""
+        return int(np.sum(np.asarray(self.values) > as_real(bar, "bar")))
 
     def text(self, spec: str = ".2f") -> str:
         """``"median (low–high)"`` with each number formatted by ``spec``."""
@@ -67,5 +67,7 @@ def spread(values, name: str = "values") -> Spread:
     ValueError
         If ``values`` is not a non-empty finite 1-D sample.
     """
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"name must be a non-empty string (the argument's name in messages), got {name!r}")
     v = as_vector(values, name)
     return Spread(tuple(float(x) for x in v), float(np.median(v)), float(v.min()), float(v.max()))

@@ -319,6 +319,8 @@ def iekf_update(x_check, P_check, y, g: Callable, G: Callable, R, C=None, residu
     if isinstance(max_iter, (bool, np.bool_)) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
         raise ValueError(f"max_iter must be an integer >= 1, got {max_iter!r}")
     try:
+        if isinstance(tol, (bool, np.bool_, str, bytes)):    # float("0.1") and float(True) work
+            raise TypeError(tol)
         tol = float(tol)
     except (TypeError, ValueError):
         raise ValueError(f"tol must be a finite number >= 0, got {tol!r}") from None

@@ -76,9 +76,11 @@ from kalman_course.core.observations import PoseObservations, PositionObservatio
 from kalman_course.core.validation import (as_covariance, as_flag, as_matrix, as_rotation, as_rows, as_scalar,
                                            as_vector)
 from kalman_course.filters.eskf_config import BIAS_MODELS, EskfConfig, load_config
+from kalman_course.filters.eskf_streams import ObservationStream
 
 __all__ = [
-    "NominalState", "ESKF", "EskfResult", "run", "ImuGapWarning", "IMU_GAP_FACTOR",
+    "NominalState", "ESKF", "EskfResult", "run", "ImuGapWarning", "OutputTimesWarning", "IMU_GAP_FACTOR",
+    "ObservationStream",
     "error_dynamics", "noise_jacobian", "discretise", "process_noise", "propagate_covariance",
     "pose_residual", "position_residual", "kalman_gain", "update_covariance", "inject",
     "reset_jacobian", "reset_covariance", "nominal_step", "initial_covariance",
@@ -120,6 +122,10 @@ GRAVITY_CHECK_SAMPLES = 20
 
 class ImuGapWarning(UserWarning):
     """:func:`run` found gaps in the IMU timestamps and bridged them with inflated noise."""
+
+
+class OutputTimesWarning(UserWarning):
+    """Some ``output_times`` lie outside the run and have no row in the result."""
 
 
 @dataclass(frozen=True)
@@ -245,6 +251,8 @@ def _gravity_against_imu(g, rotation, f_imu, name: str = "gravity") -> None:
 
 
 def _as_time(value, name: str) -> float:
+    if isinstance(value, (bool, np.bool_, str, bytes)):          # float("2") and float(True) work
+        raise ValueError(f"{name} must be a finite time in seconds, got {value!r}")
     try:
         t = float(value)
     except (TypeError, ValueError):
@@ -375,10 +383,15 @@ def _position_residual(p_check, p_meas) -> np.ndarray:
 
 
 def _gain(P, G, R):
-    """K = P Gᵀ S⁻¹ and S = G P Gᵀ + R."""
+    """K = P Gᵀ S⁻¹ and S = G P Gᵀ + R; a singular S is a ValueError saying why it can be."""
     GP = dot(G, P)
     S = innovation_covariance(GP, G, R)
-    return gain(GP, S), S
+    try:
+        return gain(GP, S), S
+    except np.linalg.LinAlgError:
+        raise ValueError("the innovation covariance S = G P̌ Gᵀ + R is singular: the filter is already certain "
+                         "of what a sensor with zero noise measures (a zero σ in R where P̌ has no uncertainty "
+                         "either); give that sensor or the prior some uncertainty") from None
 
 
 def _inject(x: NominalState, dx) -> NominalState:
@@ -711,6 +724,18 @@ class ESKF:
         y = position_residual(self.nominal.position, p_meas)
         return self._update(y, POSITION_G, _gnss_noise(self.config))
 
+    def update_stream(self, stream: ObservationStream, k: int) -> dict:
+        """Update with report ``k`` of ``stream`` (its own noise and extrinsics), inject, reset.
+
+        Returns the innovation (m,) and S (m, m), m = 3 (positions) or 6 (poses).
+        """
+        if not isinstance(stream, ObservationStream):
+            raise ValueError(f"stream must be an ObservationStream, got {type(stream).__name__}")
+        if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)) or not 0 <= k < len(stream):
+            raise ValueError(f"k must be the index of one of {stream.name}'s {len(stream)} reports, got {k!r}")
+        y = stream.residual(k, self.nominal.position, self.nominal.rotation)
+        return self._update(y, _stream_jacobian(stream, self.nominal.rotation), stream.R)
+
 
 # ---------------------------------------------------------------------------------------
 # Batch runner
@@ -734,6 +759,8 @@ class EskfResult:
         True where an observation was used.
     innovation, S : list of numpy.ndarray
         Innovation and its covariance of every update, in time order.
+    sources : list of str
+        The name of the stream each update came from ("lidar", "gnss", or a stream's name).
     t_all, position_all, rotation_all : numpy.ndarray
         The nominal trajectory at every timeline node (IMU samples plus inserted nodes),
         posterior at update nodes; only if ``record_all`` was set, else empty.
@@ -752,13 +779,14 @@ class EskfResult:
     t_all: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
     position_all: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, 3)))
     rotation_all: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, 3, 3)))
+    sources: list = field(repr=False, default_factory=list)
 
     def at(self, times) -> "EskfResult":
         """The rows whose time is one of ``times`` (within 1 µs, in any order), e.g. the truth's times."""
         keep = _rows_at(self.t, times)
         return EskfResult(self.t[keep], self.position[keep], self.velocity[keep], self.rotation[keep],
                           self.accel_bias[keep], self.gyro_bias[keep], self.P[keep], self.updated[keep],
-                          self.innovation, self.S, self.t_all, self.position_all, self.rotation_all)
+                          self.innovation, self.S, self.t_all, self.position_all, self.rotation_all, self.sources)
 
     def std(self) -> np.ndarray:
         """Standard deviations sqrt(diag P), shape (K, 15)."""
@@ -781,6 +809,14 @@ def _imu_samples(imu, start, t_end):
         if not hasattr(imu, name):
             raise ValueError(f"imu must have t (N,), specific_force (N, 3) and angular_rate (N, 3); "
                              f"missing {name!r}")
+    for name in ("t", "specific_force", "angular_rate"):
+        try:
+            ndim = np.ndim(getattr(imu, name))
+        except ValueError:                      # a ragged list
+            ndim = None
+        if ndim != (1 if name == "t" else 2):
+            shape = "(N,)" if name == "t" else "(N, 3)"
+            raise ValueError(f"imu.{name} must be an array of shape {shape}, got {getattr(imu, name)!r:.60}")
     n_imu = len(np.asarray(imu.t))
     if isinstance(start, (bool, np.bool_)) or not isinstance(start, (int, np.integer)) or not 0 <= start < n_imu:
         raise ValueError(f"start must be an integer index into imu.t (0 ≤ start < {n_imu}), got {start!r}")
@@ -823,16 +859,19 @@ def _imu_gaps(dt: np.ndarray, gap_factor) -> np.ndarray:
 
 
 
-def _sorted_events(event_sources, t0: float, t1: float):
+def _sorted_events(event_sources, t0: float, t1: float, from_start=()):
     """The observation events inside (t0, t1], sorted by time and then by kind.
 
     ``event_sources`` is a sequence of time vectors (or None); a vector's position in it is
-    its events' kind. Returns (times (E,), kinds (E,), indices into their source (E,)).
+    its events' kind. The kinds in ``from_start`` (output-only times) also keep a time equal
+    to t0, which gets a row with the initial state. Returns (times (E,), kinds (E,), indices
+    into their source (E,)).
     """
     ev_t, ev_kind, ev_idx = [np.zeros(0)], [np.zeros(0, int)], [np.zeros(0, int)]
     for kind, times in enumerate(event_sources):
         if times is not None:
-            sel = np.nonzero((times > t0) & (times <= t1))[0]
+            after_start = times >= t0 if kind in from_start else times > t0
+            sel = np.nonzero(after_start & (times <= t1))[0]
             ev_t.append(times[sel])
             ev_kind.append(np.full(len(sel), kind))
             ev_idx.append(sel)
@@ -858,10 +897,66 @@ def _timeline(t_imu, f_imu, w_imu, step_flag, event_t, tol: float = 1e-9):
             np.searchsorted(t_nodes, event_t - tol))
 
 
+def _stream_jacobian(stream: ObservationStream, R_check) -> np.ndarray:
+    """G (m, 15) of ``stream`` at the nominal attitude: its [δp, δθ] Jacobian placed in the 15-state."""
+    if stream.plain:
+        return POSE_G if stream.kind == "pose" else POSITION_G
+    H = stream.jacobian(R_check)
+    G = np.zeros((stream.m, 15))
+    G[:, IDX_P], G[:, IDX_TH] = H[:, :3], H[:, 3:]
+    return G
+
+
+def _as_streams(lidar, gnss, streams, config: EskfConfig) -> list[ObservationStream]:
+    """Every observation source as a stream: ``lidar`` (poses, the configuration's lidar σ),
+    ``gnss`` (positions, its GNSS σ), then each of ``streams`` in order."""
+    out = []
+    if lidar is not None:
+        out.append(ObservationStream(_as_observations(lidar, "lidar", PoseObservations), config.lidar_std,
+                                     kind="pose", name="lidar"))
+    if gnss is not None:
+        out.append(ObservationStream(_as_observations(gnss, "gnss", PositionObservations),
+                                     np.full(3, config.gnss_std), kind="position", name="gnss"))
+    if streams is None:
+        return out
+    if isinstance(streams, ObservationStream) or not isinstance(streams, (list, tuple)):
+        raise ValueError(f"streams must be a list of ObservationStream, got {type(streams).__name__}")
+    for i, stream in enumerate(streams):
+        if not isinstance(stream, ObservationStream):
+            raise ValueError(f"streams[{i}] must be an ObservationStream (observations, noise, kind, lever arm), "
+                             f"got {type(stream).__name__}")
+    names = [s.name for s in out] + [s.name for s in streams]
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        raise ValueError(f"streams: each stream needs its own name (lidar and gnss are taken by those "
+                         f"arguments); repeated: {', '.join(repeated)}")
+    return out + list(streams)
+
+
+def _as_output_times(output_times, t0: float, t1: float, clip, stacklevel: int = 3):
+    """``output_times`` validated: strictly increasing; a warning names those outside [t0, t1]
+    unless the caller asked for them to be dropped (``clip``)."""
+    clip = as_flag(clip, "clip_output_times")
+    if output_times is None:
+        return None
+    times = as_vector(output_times, "output_times")
+    step = np.diff(times)
+    if (step <= 0.0).any():
+        k = int(np.argmax(step <= 0.0)) + 1
+        raise ValueError(f"output_times must be strictly increasing (one row per time): output_times[{k}] = "
+                         f"{times[k]:.9g} <= output_times[{k - 1}] = {times[k - 1]:.9g}")
+    outside = (times < t0) | (times > t1)
+    if outside.any() and not clip:
+        warnings.warn(OutputTimesWarning(
+            f"{int(outside.sum())} of {len(times)} output_times lie outside the run [{t0:.9g}, {t1:.9g}] s and "
+            "get no row; pass only times inside it, or clip_output_times=True to drop them"), stacklevel=stacklevel)
+    return times
+
+
 def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lidar=None, gnss=None,
-        start: int = 0, t_end: float | None = None, output_times=None, P0=None,
-        use_interpolation_flags: bool = True, record_all: bool = False,
-        gap_factor: float | None = IMU_GAP_FACTOR) -> EskfResult:
+        streams=None, start: int = 0, t_end: float | None = None, output_times=None,
+        clip_output_times: bool = False, P0=None, use_interpolation_flags: bool = True,
+        record_all: bool = False, gap_factor: float | None = IMU_GAP_FACTOR) -> EskfResult:
     """Run the ESKF over an IMU record, fusing lidar poses and/or GNSS positions.
 
     The same kernels as :class:`ESKF` (one F, one Q, one update, injection and reset): the
@@ -887,13 +982,22 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
     gnss : PositionObservations, optional
         Reported positions: ``t`` (M,), ``position`` (M, 3) (for example
         ``ex.gnss.observations()``); converted like ``lidar``.
+    streams : list of ObservationStream, optional
+        Further sensors, each with its own reports, noise, kind (positions or poses) and
+        extrinsics (lever arm, R_bs): see :mod:`kalman_course.filters.eskf_streams`. At equal
+        times ``lidar`` is used first, then ``gnss``, then the streams in list order.
     start : int
         Index of the first IMU sample.
     t_end : float, optional
         Stop at this time (default: the last IMU sample).
     output_times : array_like, optional
         Extra times at which to record the state without an update (for example the truth's
-        times, to evaluate a GNSS run at 10 Hz).
+        times, to evaluate a GNSS run at 10 Hz); strictly increasing. A time equal to
+        ``imu.t[start]`` gets a row holding ``initial`` and the prior covariance; times
+        outside the run get no row and an :class:`OutputTimesWarning`.
+    clip_output_times : bool
+        Drop the ``output_times`` outside the run without a warning (for example the truth's
+        times of the whole excerpt, for a run that starts later).
     P0 : array_like (15, 15), optional
         Initial covariance, symmetric (default: from the configuration's prior).
     use_interpolation_flags : bool
@@ -931,36 +1035,33 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
     dt_imu = np.diff(t_imu)
     if gap_factor is not None:
         gap_factor = as_scalar(gap_factor, "gap_factor")
-    lidar = _as_observations(lidar, "lidar", PoseObservations)
-    gnss = _as_observations(gnss, "gnss", PositionObservations)
+    sources = _as_streams(lidar, gnss, streams, cfg)
     P = initial_covariance(cfg) if P0 is None else np.array(as_covariance(P0, "P0", 15, psd=True))
     use_interpolation_flags = as_flag(use_interpolation_flags, "use_interpolation_flags")
     record_all = as_flag(record_all, "record_all")
 
     t0, t1 = t_imu[0], t_imu[-1]
+    outputs = _as_output_times(output_times, t0, t1, clip_output_times)
     step_flag = _imu_gaps(dt_imu, gap_factor)
     if use_interpolation_flags:
         step_flag |= flag_imu[:-1] | flag_imu[1:]
 
-    # ---- events: (time, kind, index) with kind 0 = lidar, 1 = gnss, 2 = output only ----
-    ev_t, ev_kind, ev_idx = _sorted_events((None if lidar is None else lidar.t, None if gnss is None else gnss.t,
-                                            None if output_times is None else as_vector(output_times, "output_times")),
-                                           t0, t1)
+    # ---- events: (time, kind, index); kind k < len(sources) is sources[k], the last kind output only ----
+    n_sources = len(sources)
+    ev_t, ev_kind, ev_idx = _sorted_events([s.t for s in sources] + [outputs], t0, t1, from_start=(n_sources,))
     t_nodes, f_nodes, w_mean, flags, ev_node = _timeline(t_imu, f_imu, w_imu, step_flag, ev_t)
     dt_nodes = np.diff(t_nodes)
     q = _process_noise(np.where(flags[:, None], cfg.interpolated_density, cfg.process_density),
                        dt_nodes, cfg.bias_model)
     # plain lists: the event loop reads them one element at a time
     ev_node_l, ev_kind_l, ev_idx_l = ev_node.tolist(), ev_kind.tolist(), ev_idx.tolist()
-
-    R_lidar, R_gnss = _lidar_noise(cfg), _gnss_noise(cfg)
     exact = cfg.exact_reset
 
     # outputs: one row per distinct event node
     out_nodes = np.unique(ev_node)
     n_events = len(ev_node_l)
     rows = []                   # (x, P, updated) at every output node
-    innovations, S_list = [], []
+    innovations, S_list, used_sources = [], [], []
     if record_all:
         all_p = np.zeros((len(t_nodes), 3))
         all_R = np.zeros((len(t_nodes), 3, 3))
@@ -980,16 +1081,17 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
         while e < n_events and ev_node_l[e] == target:       # every observation at this node
             kind, idx = ev_kind_l[e], ev_idx_l[e]
             e += 1
-            if kind == 0:
-                y = _pose_residual(x.position, x.rotation, lidar.position[idx], lidar.rotation[idx])
-                x, P, y, S = _correct(x, P, y, POSE_G, R_lidar, exact)
-            elif kind == 1:
-                y = _position_residual(x.position, gnss.position[idx])
-                x, P, y, S = _correct(x, P, y, POSITION_G, R_gnss, exact)
-            else:
+            if kind == n_sources:
                 continue
+            stream = sources[kind]
+            y = stream.residual(idx, x.position, x.rotation)
+            try:
+                x, P, y, S = _correct(x, P, y, _stream_jacobian(stream, x.rotation), stream.R, exact)
+            except ValueError as exc:
+                raise ValueError(f"{stream.name}[{idx}] at t = {stream.t[idx]:.9g} s: {exc}") from None
             innovations.append(y)
             S_list.append(S)
+            used_sources.append(stream.name)
             updated = True
         if record_all:
             all_p[target], all_R[target] = x.position, x.rotation
@@ -1006,4 +1108,4 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
                       np.array([used for _, _, used in rows], dtype=bool), innovations, S_list,
                       t_nodes if record_all else np.zeros(0),
                       all_p if record_all else np.zeros((0, 3)),
-                      all_R if record_all else np.zeros((0, 3, 3)))
+                      all_R if record_all else np.zeros((0, 3, 3)), used_sources)

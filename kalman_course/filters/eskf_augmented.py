@@ -169,15 +169,20 @@ def _propagate(x: NominalState, P, e_hat, f, w_mean, dt, q, g, bias_model: str, 
     return x, P_new, phi * e_hat, ps, Rs
 
 
-def _correct(x: NominalState, P, e_hat, y, R, exact_reset: bool):
+def _correct(x: NominalState, P, e_hat, y, R, exact_reset: bool, G15=None):
     """Pose update with the plain residual y (6,): r = y + ê, gain, Joseph form, inject, reset.
 
     Without augmentation (P 15 × 15, ê empty) the same operations as ``eskf._correct``.
-    Returns (x̂, P̂, ê, innovation r, S).
+    ``G15`` (m, 15) marks an update from another stream, whose errors are white: r = y and
+    G = [G15, 0]. Returns (x̂, P̂, ê, innovation r, S).
     """
     n = P.shape[0]
-    G = POSE_G if n == 15 else _G_AUG
-    r = y if n == 15 else y + e_hat
+    if G15 is not None:
+        G = G15 if n == 15 else np.hstack([G15, np.zeros((G15.shape[0], n - 15))])
+        r = y
+    else:
+        G = POSE_G if n == 15 else _G_AUG
+        r = y if n == 15 else y + e_hat
     K, S = eskf._gain(P, G, R)
     dx = dot(K, r)
     P = joseph_update(P, K, G, R, np.eye(n))
@@ -407,17 +412,19 @@ class AugmentedResult(EskfResult):
         keep = eskf._rows_at(self.t, times)
         return AugmentedResult(self.t[keep], self.position[keep], self.velocity[keep], self.rotation[keep],
                                self.accel_bias[keep], self.gyro_bias[keep], self.P[keep], self.updated[keep],
-                               self.innovation, self.S, error_estimate=self.error_estimate[keep],
+                               self.innovation, self.S, sources=self.sources, error_estimate=self.error_estimate[keep],
                                P_full=self.P_full[keep], time_constant=self.time_constant)
 
 
 def _timeline(t_imu, f_imu, w_imu, step_flag, event_sources, cfg: EskfConfig):
     """``eskf.run``'s merged timeline and events, with each step's length and process noise.
 
+    The last of ``event_sources`` is the output-only times (kept from the start, as there).
     Returns t_nodes, f_nodes, the mean rates, the steps, the per-step Q diagonals and the
     sorted events as plain lists (node, kind, index).
     """
-    ev_t, ev_kind, ev_idx = eskf._sorted_events(event_sources, t_imu[0], t_imu[-1])
+    ev_t, ev_kind, ev_idx = eskf._sorted_events(event_sources, t_imu[0], t_imu[-1],
+                                                from_start=(len(event_sources) - 1,))
     t_nodes, f_nodes, w_mean, flags, ev_node = eskf._timeline(t_imu, f_imu, w_imu, step_flag, ev_t)
     dt_nodes = np.diff(t_nodes)
     q = eskf._process_noise(np.where(flags[:, None], cfg.interpolated_density, cfg.process_density),
@@ -426,7 +433,8 @@ def _timeline(t_imu, f_imu, w_imu, step_flag, event_sources, cfg: EskfConfig):
 
 
 def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lidar, time_constant=None,
-        sigma=None, white_std=None, start: int = 0, t_end: float | None = None, output_times=None, P0=None,
+        sigma=None, white_std=None, streams=None, start: int = 0, t_end: float | None = None, output_times=None,
+        clip_output_times: bool = False, P0=None,
         use_interpolation_flags: bool = True, gap_factor: float | None = IMU_GAP_FACTOR) -> AugmentedResult:
     """Run the augmented ESKF over an IMU record, fusing lidar poses with Gauss–Markov errors.
 
@@ -455,12 +463,19 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
         Its stationary σ [m ×3, rad ×3], positive (default: the configuration's lidar std).
     white_std : array_like, shape (6,), optional
         σ of an extra white part [m ×3, rad ×3], ≥ 0 (default 0).
+    streams : list of ObservationStream, optional
+        Further sensors with white errors (e.g. GNSS positions with a lever arm), as in
+        :func:`kalman_course.filters.eskf.run`; used after the lidar pose at equal times.
     start : int
         Index of the first IMU sample.
     t_end : float, optional
         Stop at this time (default: the last IMU sample).
     output_times : array_like, optional
-        Extra times at which to record the state without an update.
+        Extra times at which to record the state without an update, as in
+        :func:`kalman_course.filters.eskf.run` (strictly increasing; a time equal to
+        ``imu.t[start]`` gives the initial state; times outside the run a warning).
+    clip_output_times : bool
+        Drop the ``output_times`` outside the run without a warning.
     P0 : array_like (15, 15), optional
         Navigation prior, symmetric (default: the configuration's); δe starts at diag(σ²).
     use_interpolation_flags : bool
@@ -491,20 +506,21 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
     if lidar is None:
         raise ValueError("lidar must be a PoseObservations (t, position, rotation), got None")
     lidar = eskf._as_observations(lidar, "lidar", PoseObservations)
+    others = eskf._as_streams(lidar, None, streams, cfg)[1:]
     P = _initial_covariance(cfg, model, P0)
     e_hat = np.zeros(model.n - 15)
     step_flag = eskf._imu_gaps(np.diff(t_imu), gap_factor)
     if as_flag(use_interpolation_flags, "use_interpolation_flags"):
         step_flag |= flag_imu[:-1] | flag_imu[1:]
-    outputs = None if output_times is None else as_vector(output_times, "output_times")
+    outputs = eskf._as_output_times(output_times, t_imu[0], t_imu[-1], clip_output_times)
 
-    # kinds as in eskf.run (0 lidar, 2 output only), so that ties are ordered alike
+    # kinds in eskf.run's order (lidar, the other streams, output only), so that ties are ordered alike
     t_nodes, f_nodes, w_mean, dt_nodes, q, ev_node, ev_kind, ev_idx = _timeline(
-        t_imu, f_imu, w_imu, step_flag, (lidar.t, None, outputs), cfg)
+        t_imu, f_imu, w_imu, step_flag, [lidar.t] + [s.t for s in others] + [outputs], cfg)
     R = _measurement_noise(cfg, model)
     exact = cfg.exact_reset
 
-    rows, innovations, S_list = [], [], []
+    rows, innovations, S_list, used_sources = [], [], [], []
     e, node, n_events = 0, 0, len(ev_node)
     for target in np.unique(ev_node).tolist():
         if target > node:
@@ -516,10 +532,18 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
         while e < n_events and ev_node[e] == target:
             kind, idx = ev_kind[e], ev_idx[e]
             e += 1
-            if kind != 0:
+            if kind == 0:
+                y = eskf._pose_residual(x.position, x.rotation, lidar.position[idx], lidar.rotation[idx])
+                x, P, e_hat, r, S = _correct(x, P, e_hat, y, R, exact)
+                used_sources.append("lidar")
+            elif kind <= len(others):
+                stream = others[kind - 1]
+                y = stream.residual(idx, x.position, x.rotation)
+                x, P, e_hat, r, S = _correct(x, P, e_hat, y, stream.R, exact,
+                                             G15=eskf._stream_jacobian(stream, x.rotation))
+                used_sources.append(stream.name)
+            else:
                 continue
-            y = eskf._pose_residual(x.position, x.rotation, lidar.position[idx], lidar.rotation[idx])
-            x, P, e_hat, r, S = _correct(x, P, e_hat, y, R, exact)
             innovations.append(r)
             S_list.append(S)
             updated = True
@@ -535,5 +559,5 @@ def run(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lida
                            stacked("rotation", (3, 3)), stacked("accel_bias", (3,)), stacked("gyro_bias", (3,)),
                            np.ascontiguousarray(P_full[:, :15, :15]),
                            np.array([used for _, _, _, used in rows], dtype=bool), innovations, S_list,
-                           error_estimate=np.array([e_k for _, _, e_k, _ in rows]).reshape(len(rows), model.n - 15),
+                           sources=used_sources, error_estimate=np.array([e_k for _, _, e_k, _ in rows]).reshape(len(rows), model.n - 15),
                            P_full=P_full, time_constant=model.time_constant)

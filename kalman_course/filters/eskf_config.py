@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -200,7 +201,7 @@ class EskfConfig:
             section, entry = key.split("__", 1)
             if section not in SECTIONS or entry not in SECTIONS[section]:
                 raise ValueError(f"unknown setting {section}.{entry}")
-            v = _positive(value, f"{section}.{entry}")
+            v = _positive(value, f"{section}.{entry}", allow_zero=True)
             si_unit = SECTIONS[section][entry][2]
             kind = SECTIONS[section][entry][0][0]
             settings[f"{section}.{entry}"] = NoiseSetting(v, si_unit, kind, "set in code", v)
@@ -225,15 +226,17 @@ def config_dir() -> Path:
     return Path(__file__).resolve().parent / "eskf_configs"
 
 
-def _positive(value, where: str) -> float:
+def _positive(value, where: str, allow_zero: bool = False) -> float:
+    """``value`` as a finite float > 0 (≥ 0 with ``allow_zero``: a noise of 0 means known exactly)."""
     if isinstance(value, bool):
         raise ValueError(f"{where}: value must be a number, got {value!r}")
     try:
         v = float(value)
     except (TypeError, ValueError):
         raise ValueError(f"{where}: value must be a number, got {value!r}") from None
-    if not math.isfinite(v) or v <= 0.0:
-        raise ValueError(f"{where}: value must be a positive finite number, got {value!r}")
+    if not math.isfinite(v) or v < 0.0 or (v == 0.0 and not allow_zero):
+        kind = "non-negative (0 = known exactly)" if allow_zero else "positive"
+        raise ValueError(f"{where}: value must be a {kind} finite number, got {value!r}")
     return v
 
 
@@ -246,11 +249,13 @@ def config_from_dict(data, name: str = "dict") -> EskfConfig:
         Naming the section and entry: a missing or unknown key, a non-positive value, a
         unit or kind that does not fit the entry, a missing ``meaning``.
     """
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"name must be a non-empty string (where the configuration came from), got {name!r}")
     where = f"config {name}"
     if not isinstance(data, dict):
         raise ValueError(f"{where}: must be a mapping at the top level, got {type(data).__name__}")
     known_top = {"bias_model", "exact_reset", "imu_rate_hz", "description", *SECTIONS}
-    unknown = sorted(set(data) - known_top)
+    unknown = sorted(str(k) for k in set(data) - known_top)        # a key may be a number in YAML
     if unknown:
         raise ValueError(f"{where}: unknown key(s) {', '.join(unknown)}; known: {', '.join(sorted(known_top))}")
     bias_model = data.get("bias_model", "random_walk")
@@ -268,7 +273,7 @@ def config_from_dict(data, name: str = "dict") -> EskfConfig:
             block = {}
         if not isinstance(block, dict):
             raise ValueError(f"{where}: section {section!r} must be a mapping")
-        extra = sorted(set(block) - set(entries))
+        extra = sorted(str(k) for k in set(block) - set(entries))
         if extra:
             raise ValueError(f"{where}: unknown entry {section}.{extra[0]}; known: {', '.join(entries)}")
         for entry, (kinds, units, _si_unit, required) in entries.items():
@@ -284,8 +289,11 @@ def config_from_dict(data, name: str = "dict") -> EskfConfig:
             missing = [k for k in ("value", "unit", "kind", "meaning") if k not in item]
             if missing:
                 raise ValueError(f"{where}: {key} is missing {', '.join(missing)}")
-            value = _positive(item["value"], f"{where}: {key}")
+            value = _positive(item["value"], f"{where}: {key}", allow_zero=True)
             kind, unit, meaning = item["kind"], item["unit"], item["meaning"]
+            for field_name, text in (("kind", kind), ("unit", unit)):
+                if not isinstance(text, str):
+                    raise ValueError(f"{where}: {key} has {field_name} {text!r}, which is not a string")
             if kind not in kinds:
                 raise ValueError(f"{where}: {key} has kind {kind!r}; allowed: {', '.join(kinds)}")
             if not isinstance(meaning, str) or not meaning.strip():
@@ -315,17 +323,34 @@ def load_config(source="kitti_lidar") -> EskfConfig:
     source : str or path-like or dict
         A shipped configuration's name (``"kitti_lidar"``, ``"kitti_gnss"``), a path to a
         YAML file, or an already parsed mapping.
+
+    Raises
+    ------
+    FileNotFoundError
+        If there is no such file (the message lists the shipped configurations).
+    ValueError
+        If ``source`` is not a name, path or mapping; the path is a directory; the file is
+        not UTF-8 text or not valid YAML; or the configuration does not validate
+        (:func:`config_from_dict`). The message names the file.
     """
     if isinstance(source, dict):
         return config_from_dict(source)
+    if not isinstance(source, (str, os.PathLike)) or not str(os.fspath(source)):
+        raise ValueError(f"source must be a configuration name, a path to a YAML file or a mapping, "
+                         f"got {type(source).__name__}: {source!r:.60}")
     path = Path(source)
     if not path.suffix and not path.exists():
         path = config_dir() / f"{source}.yaml"
+    if path.is_dir():
+        raise ValueError(f"{path} is a directory, not a configuration file (.yaml)")
     if not path.is_file():
         shipped = ", ".join(sorted(p.stem for p in config_dir().glob("*.yaml")))
         raise FileNotFoundError(f"{path}: no such configuration file (shipped: {shipped})")
     try:
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not a UTF-8 text file (byte {exc.start} cannot be decoded): "
+                         f"is it a configuration file?") from None
     except yaml.YAMLError as exc:
         raise ValueError(f"{path}: not valid YAML ({exc})") from None
     return config_from_dict(data, name=path.stem)

@@ -80,15 +80,15 @@ from numpy import dot
 
 from kalman_course.core import so3
 from kalman_course.core.linalg import joseph_update, symmetrise
-from kalman_course.core.observations import PoseObservations, PositionObservations
+from kalman_course.core.observations import PoseObservations
 from kalman_course.core.validation import as_covariance, as_flag, as_rotation, as_scalar, as_vector
-from kalman_course.filters.eskf import (IDX_P, IDX_TH, IDX_V, IMU_GAP_FACTOR, POSE_G, POSITION_G, EskfResult,
-                                        NominalState, initial_covariance)
+from kalman_course.filters.eskf import (IDX_P, IDX_TH, IDX_V, IMU_GAP_FACTOR, POSE_G, EskfResult, NominalState,
+                                        initial_covariance)
 # the ESKF's kernels and argument checks: every formula of the filter is eskf.py's
-from kalman_course.filters.eskf import (_as_config, _as_gravity, _as_nominal, _as_observations, _correct, _gain,
-                                        _gnss_noise, _gravity_against_imu, _imu_gaps, _imu_samples, _inject,
-                                        _position_residual, _process_noise, _propagate, _reset_covariance,
-                                        _sorted_events, _timeline)
+from kalman_course.filters.eskf import (_as_config, _as_gravity, _as_nominal, _as_observations, _as_streams,
+                                        _correct, _gain, _gravity_against_imu, _imu_gaps, _imu_samples, _inject,
+                                        _process_noise, _propagate, _reset_covariance, _sorted_events,
+                                        _stream_jacobian, _timeline)
 
 __all__ = ["IDX_PC", "IDX_THC", "relative_motion", "relative_pose_residual", "relative_pose_jacobian",
            "clone_covariance", "yaw_nullspace", "pose_transition_blocks", "RelativeRunResult", "run_relative"]
@@ -301,7 +301,8 @@ class RelativeRunResult(EskfResult):
     state, the clone left out).
 
     ``innovation`` and ``S`` hold the relative updates only (6-vectors and (6, 6), in time
-    order); the GNSS updates' are in ``gnss_innovation`` (3,) and ``gnss_S`` (3, 3).
+    order); the absolute updates' (GNSS and any other stream) are in ``gnss_innovation``
+    ((3,) or (6,)) and ``gnss_S``, with the name of each one's stream in ``sources``.
     """
 
     gnss_innovation: list = field(repr=False, default_factory=list)
@@ -354,7 +355,7 @@ def _as_linearisation(value):
 
 
 def run_relative(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, vo, relative_std,
-                 gnss=None, start: int = 0, t_end: float | None = None, P0=None,
+                 gnss=None, streams=None, start: int = 0, t_end: float | None = None, P0=None,
                  use_interpolation_flags: bool = True, gap_factor: float | None = IMU_GAP_FACTOR,
                  linearise_at=None) -> RelativeRunResult:
     """Run the ESKF on an IMU record, fusing VO pose increments (and optionally GNSS fixes).
@@ -381,6 +382,10 @@ def run_relative(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092)
     gnss : PositionObservations, optional
         Position fixes, navigation frame (e.g. ``ex.gnss.observations()``), with
         ``config.gnss_std``.
+    streams : list of ObservationStream, optional
+        Further absolute sensors (positions or poses in the navigation frame, each with its
+        own noise and extrinsics), as in :func:`kalman_course.filters.eskf.run`. At equal
+        times GNSS is used first, then the streams in order, and the VO frame last.
     start : int
         Index of the first IMU sample.
     t_end : float, optional
@@ -418,9 +423,8 @@ def run_relative(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092)
     vo = _as_observations(vo, "vo", PoseObservations)
     if vo is None:
         raise ValueError("vo must be a PoseObservations (the VO poses), got None")
-    gnss = _as_observations(gnss, "gnss", PositionObservations)
+    absolute = _as_streams(None, gnss, streams, cfg)
     R_rel = np.diag(_as_relative_std(relative_std) ** 2)
-    R_gnss = _gnss_noise(cfg)
     P = initial_covariance(cfg) if P0 is None else np.array(as_covariance(P0, "P0", 15, psd=True))
     if gap_factor is not None:
         gap_factor = as_scalar(gap_factor, "gap_factor")
@@ -428,8 +432,9 @@ def run_relative(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092)
     if as_flag(use_interpolation_flags, "use_interpolation_flags"):
         step_flag |= flag_imu[:-1] | flag_imu[1:]
 
-    # events: GNSS (kind 0) before VO (kind 1) at equal times, so the clone is taken last
-    ev_t, ev_kind, ev_idx = _sorted_events((None if gnss is None else gnss.t, vo.t), t_imu[0], t_imu[-1])
+    # events: the absolute streams (kinds 0 … n−1) before VO (kind n) at equal times, so the clone is taken last
+    n_absolute = len(absolute)
+    ev_t, ev_kind, ev_idx = _sorted_events([s.t for s in absolute] + [vo.t], t_imu[0], t_imu[-1])
     t_nodes, f_nodes, w_mean, flags, ev_node = _timeline(t_imu, f_imu, w_imu, step_flag, ev_t)
     dt = np.diff(t_nodes)
     q = _process_noise(np.where(flags[:, None], cfg.interpolated_density, cfg.process_density), dt,
@@ -440,9 +445,8 @@ def run_relative(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092)
     lin_node = (x.position, x.velocity, x.rotation)   # first estimate at the current node (before its updates)
     clone_lin = None                                   # where G_rel takes the clone's pose
     zero15 = np.zeros((15, 15))
-    G_gnss = np.hstack([POSITION_G, np.zeros((3, 6))])
     clone, vo_prev = None, None          # cloned nominal pose and the VO pose at the same frame
-    rows, innovations, S_rel, gnss_innovations, S_gnss = [], [], [], [], []
+    rows, innovations, S_rel, gnss_innovations, S_gnss, absolute_sources = [], [], [], [], [], []
     node = 0
     for e, target in enumerate(ev_node.tolist()):
         if target > node:                 # propagate: the 15-state as the ESKF, the cross-covariance by Φ
@@ -471,14 +475,18 @@ def run_relative(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092)
             node = target
         kind, k = int(ev_kind[e]), int(ev_idx[e])
         updated = False
-        if kind == 0:                     # GNSS fix
-            y = _position_residual(x.position, gnss.position[k])
+        if kind < n_absolute:             # an absolute fix (GNSS or another stream)
+            stream = absolute[kind]
+            y = stream.residual(k, x.position, x.rotation)
+            G = _stream_jacobian(stream, x.rotation)
             if clone is None:
-                x, P, _, S = _correct(x, P, y, POSITION_G, R_gnss, exact)
+                x, P, _, S = _correct(x, P, y, G, stream.R, exact)
             else:
-                x, clone, P, S = _correct_augmented(x, clone, P, y, G_gnss, R_gnss, exact)
+                G = np.hstack([G, np.zeros((stream.m, 6))])
+                x, clone, P, S = _correct_augmented(x, clone, P, y, G, stream.R, exact)
             gnss_innovations.append(y)
             S_gnss.append(S)
+            absolute_sources.append(stream.name)
             updated = True
         else:                             # VO frame: relative update, then a new clone
             p_vo, R_vo = vo.position[k], vo.rotation[k]
@@ -513,4 +521,4 @@ def run_relative(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092)
                              stacked("velocity", (3,)), stacked("rotation", (3, 3)), stacked("accel_bias", (3,)),
                              stacked("gyro_bias", (3,)), np.array([row[2] for row in rows]).reshape(-1, 15, 15),
                              np.array([row[3] for row in rows], dtype=bool), innovations, S_rel,
-                             gnss_innovation=gnss_innovations, gnss_S=S_gnss)
+                             sources=absolute_sources, gnss_innovation=gnss_innovations, gnss_S=S_gnss)

@@ -34,7 +34,7 @@ from kalman_course.core import so3
 from kalman_course.core.imu import integrate_midpoint
 from kalman_course.core.linalg import gain, innovation_covariance, joseph_update, symmetrise
 from kalman_course.core.observations import PoseObservations
-from kalman_course.core.validation import as_scalar, as_vector
+from kalman_course.core.validation import as_matrix, as_scalar, as_vector
 # the ESKF's argument checks, so that both filters accept and reject the same inputs
 from kalman_course.filters.eskf import (_as_config, _as_gravity, _as_nominal, _as_observations,
                                         _gravity_against_imu, _imu_samples)
@@ -129,6 +129,13 @@ def propagate(x: np.ndarray, f0, w0, f1, w1, dt: float, g) -> np.ndarray:
     return np.concatenate([ps[1], vs[1], q1, b_a, b_w])
 
 
+def _checked_matrix(fn, label: str):
+    """``fn`` wrapped so that what it returns is checked as a finite (16, 16) matrix named ``label``."""
+    def checked(*args):
+        return as_matrix(fn(*args), label, (16, 16))
+    return checked
+
+
 @dataclass(frozen=True)
 class NominalEkfResult:
     """Output of :func:`run_nominal_ekf` at the update times.
@@ -151,7 +158,7 @@ class NominalEkfResult:
     P_pose: np.ndarray
 
 
-def run_nominal_ekf(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lidar,
+def run_nominal_ekf(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.8092), *, lidar=None,
                     start: int = 0, t_end: float | None = None, jacobian=None,
                     covariance_update=None) -> NominalEkfResult:
     """Run the nominal-state EKF on IMU samples with lidar pose updates.
@@ -163,14 +170,39 @@ def run_nominal_ekf(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.80
     -> A (16, 16) is the model's Jacobian (default :func:`continuous_jacobian`) and
     ``covariance_update`` (P, K, G, R) -> P̂ the update of P (default the Joseph form):
     chapter 08's exercise runs the filter on the learner's own.
+
+    ``lidar`` (keyword, required) is a :class:`PoseObservations` with at least one
+    observation inside the IMU span that is filtered (from ``imu.t[start]`` up to
+    ``t_end``): the result holds the states at the update times.
+
+    Raises
+    ------
+    ValueError
+        As :func:`kalman_course.filters.eskf.run` for the IMU record, the initial state, the
+        configuration and gravity; for a ``lidar`` that is missing, not a pose record or has
+        no observation inside the filtered span; for a ``jacobian`` or ``covariance_update``
+        that is not callable or returns something other than a finite (16, 16) matrix.
     """
-    jacobian = continuous_jacobian if jacobian is None else jacobian
     cfg = _as_config(config)
     initial = _as_nominal(initial, "initial")
     g = _as_gravity(gravity)
+    for name, fn in (("jacobian", jacobian), ("covariance_update", covariance_update)):
+        if fn is not None and not callable(fn):
+            raise ValueError(f"{name} must be None or a callable, got {type(fn).__name__}")
+    if lidar is None:
+        raise ValueError("lidar must be a PoseObservations (the nominal-state EKF is corrected by pose "
+                         "updates only), got None")
     t_imu, f_imu, w_imu, _ = _imu_samples(imu, start, t_end)
     _gravity_against_imu(g, initial.rotation, f_imu)
     lidar = _as_observations(lidar, "lidar", PoseObservations)
+    inside = (lidar.t >= t_imu[0]) & (lidar.t <= t_imu[-1])
+    if not inside.any():
+        span = (f"[{lidar.t[0]:.4f}, {lidar.t[-1]:.4f}] s" if len(lidar) else "none (an empty record)")
+        raise ValueError(f"lidar has no observation inside the filtered IMU span [{t_imu[0]:.4f}, "
+                         f"{t_imu[-1]:.4f}] s (imu.t from start={start} up to t_end={t_end}); its times: {span}")
+    model = continuous_jacobian if jacobian is None else _checked_matrix(jacobian, "jacobian(q, f, w, b_a, b_w)")
+    if covariance_update is not None:
+        covariance_update = _checked_matrix(covariance_update, "covariance_update(P, K, G, R)")
     dens = cfg.process_density
     prior = cfg.prior_std
     q0 = so3.matrix_to_quat(initial.rotation)
@@ -189,7 +221,7 @@ def run_nominal_ekf(imu, initial, config="kitti_lidar", gravity=(0.0, 0.0, -9.80
     dens_cols = np.repeat(dens, 3)             # B Q Bᵀ = T · (B_t diag(σ²) B_tᵀ) with the T / √T scaling
 
     def predict(x, P, f0, w0, f1, w1, dt):
-        A = jacobian(x[6:10], f0, 0.5 * (w0 + w1), x[10:13], x[13:16])
+        A = model(x[6:10], f0, 0.5 * (w0 + w1), x[10:13], x[13:16])
         F = I16 + A * dt
         Bs = nominal_noise_jacobian(x[6:10]) * dens_cols
         return propagate(x, f0, w0, f1, w1, dt, g), symmetrise(F @ P @ F.T + dt * (Bs @ Bs.T))

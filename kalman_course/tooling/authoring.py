@@ -32,7 +32,8 @@ from pathlib import Path
 from kalman_course.tooling.cells import (BEGIN_RE, CHECK_OUTPUT_TAG, END_RE,  # noqa: F401 (re-exported)
                                          FIX_THIS, GRADER_TAG, IGNORE_OUTPUT_TAG, STUB_RE, AuthoringError,
                                          grader_info, is_challenge)
-from kalman_course.tooling.notebooks import normalise, notebook_text
+from kalman_course.tooling.notebooks import (InputError, load_notebook, normalise, notebook_text, require_folder,
+                                             require_output)
 from kalman_course.tooling.copied import solution_digests
 from kalman_course.tooling.review import solution_course_calls
 
@@ -186,14 +187,24 @@ def build_exercise(solution_path: str | Path):
 
     Raises
     ------
+    NotebookError
+        If the file is not a notebook (naming it and why).
     AuthoringError
         If markers are malformed, a stub names a check with no grader cell, a grader cell
         lacks its metadata, or a grader has no stub (it could never fail).
     """
-    import nbformat  # here, not at the top: grading imports this module and not nbformat
-
     solution_path = Path(solution_path)
-    nb = nbformat.read(solution_path, as_version=4)
+    nb = load_notebook(solution_path)
+    try:
+        return _exercise_of(nb, solution_path)
+    except AuthoringError as exc:
+        if str(exc).startswith(f"{solution_path}: "):
+            raise
+        raise AuthoringError(f"{solution_path}: {exc}") from None  # it names a cell; name the notebook too
+
+
+def _exercise_of(nb, solution_path: Path):
+    """The exercise of the solution notebook ``nb`` read from ``solution_path``."""
     stubs = list_stubs(nb)
     if not stubs:
         raise AuthoringError(f"{solution_path}: no '# BEGIN SOLUTION' regions")
@@ -317,34 +328,57 @@ def build_all(solutions_dir: str | Path, exercises_dir: str | Path, *, check: bo
     ------
     BuildRefused
         If some exercises were left as they are (``.written`` lists what was written).
+    InputError
+        Before anything is written, if a folder is missing or a file, a solution is not a
+        notebook, or an exercise's place holds a folder or a file that cannot be read.
+    AuthoringError
+        Before anything is written, if a solution's fix regions or grader cells are malformed.
     """
-    solutions_dir, exercises_dir = Path(solutions_dir), Path(exercises_dir)
+    solutions_dir = require_folder(solutions_dir, "a folder of solution notebooks (--solutions)")
+    exercises_dir = require_output(exercises_dir, "the folder the exercises are written to (--exercises)",
+                                   folder=True)
     sources = sorted(solutions_dir.glob("[0-9][0-9]_*.ipynb"))
     if not sources:
-        raise FileNotFoundError(f"no solution notebooks (NN_name.ipynb) in {solutions_dir}")
+        raise InputError(solutions_dir, "no solution notebooks (NN_name.ipynb) in it",
+                         "a folder of solution notebooks (--solutions)")
+    # every solution is read and built, and every exercise file read, before anything is written:
+    # one that cannot be changes nothing
+    built = [(exercises_dir / src.name, build_exercise(src)) for src in sources]
+    current = {target: _current_exercise(target) for target, _ in built}
     changed, refused = [], []
-    for src in sources:
-        target = exercises_dir / src.name
-        exercise = build_exercise(src)
+    for target, exercise in built:
         undigested = notebook_text(exercise)      # what a build before the digests wrote
         text = _with_build_digest(exercise)
-        current = target.read_text(encoding="utf-8", errors="replace") if target.exists() else None
-        if current == text:
+        if current[target] == text:
             continue
         if check:
             changed.append(target)
             continue
-        if current is not None and current != undigested and not written_by_build(current):
+        if current[target] is not None and current[target] != undigested and not written_by_build(current[target]):
             if not force:
                 refused.append(target)
                 continue
-            _backup_path(target).write_text(current, encoding="utf-8")
+            _backup_path(target).write_text(current[target], encoding="utf-8")
         exercises_dir.mkdir(parents=True, exist_ok=True)
         target.write_text(text, encoding="utf-8")
         changed.append(target)
     if check:
-        expected = {exercises_dir / s.name for s in sources}
+        expected = {target for target, _ in built}
         changed.extend(sorted(p for p in exercises_dir.glob("[0-9][0-9]_*.ipynb") if p not in expected))
     if refused:
         raise BuildRefused(refused, changed)
     return changed
+
+
+def _current_exercise(target: Path) -> str | None:
+    """The text of the exercise file at ``target`` (undecodable bytes replaced), None if there is
+    none; :class:`InputError` naming it if it is a folder or cannot be read."""
+    expected = "an exercise file kalman-course build writes (move it away)"
+    if not target.exists() and not target.is_symlink():
+        return None
+    if target.is_dir():
+        raise InputError(target, "a folder where the build writes an exercise", expected)
+    try:
+        return target.read_text(encoding="utf-8", errors="replace")
+    except OSError as exc:
+        raise InputError(target, f"cannot be read ({exc.strerror or exc})", expected) from None

@@ -234,11 +234,9 @@ def eskf_sequence_time(config="kitti_lidar", repeats: int = 5) -> tuple[list[flo
 
 def notebook_time(path: Path, timeout: int = 600) -> float:
     """Seconds to execute a notebook in a fresh kernel (its file is left untouched)."""
-    import nbformat
+    from kalman_course.tooling.notebooks import load_notebook, run_cells
 
-    from kalman_course.tooling.notebooks import run_cells
-
-    return run_cells(nbformat.read(path, as_version=4), path.parent, timeout=timeout)
+    return run_cells(load_notebook(path), path.parent, timeout=timeout)
 
 
 def grading_time(paths) -> list[tuple[str, float, str]]:
@@ -318,7 +316,7 @@ def excerpt_accuracy(name: str) -> dict:
                                       "inputs": gnss_in}
     times = np.union1d(ex.truth.t, gnss.t[inside])
     res_g = eskf.run(ex.imu, s0, load_config("kitti_gnss"), ex.gravity, gnss=gnss.observations(), start=k0,
-                     output_times=times)
+                     output_times=times, clip_output_times=True)
     at_truth = res_g.at(ex.truth.t)
     mg = evaluate(at_truth.t, at_truth.position, at_truth.rotation, ex.truth, at_truth.P)
     rows["ESKF + GNSS (1 Hz), at the 10 Hz truth times"] = {
@@ -405,7 +403,8 @@ def seq00_ate(config_lidar="kitti_lidar", config_gnss="kitti_gnss") -> list[tupl
                      ate(res)))
     for flags in (True, False):
         res = eskf.run(seq.imu, s0, config_gnss, seq.gravity, gnss=seq.gnss.observations(), start=k0,
-                       output_times=seq.truth.t, use_interpolation_flags=flags)
+                       output_times=seq.truth.t, clip_output_times=True,
+                       use_interpolation_flags=flags)
         rows.append((f"ESKF + GNSS (real IMU, simulated noise), interpolation flags {'on' if flags else 'off'}",
                      ate(res)))
     rows.append(("raw lidar poses (simulated)", ate_rmse(cam(seq.lidar.position, seq.lidar.rotation), cam_truth)))
@@ -698,9 +697,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Measure, print the Markdown report and write it to ``args.output``; progress goes to stderr."""
+    """Measure, print the Markdown report and write it to ``args.output``; progress goes to stderr.
+
+    An output that cannot be written (a folder, or a file where its folder would be) is an
+    :class:`~kalman_course.tooling.notebooks.InputError` before anything is measured.
+    """
+    from kalman_course.tooling.notebooks import require_output
+
+    output = require_output(args.output, "a file to write the report to (--output)", folder=False)
     text = report(quick=args.quick, log=lambda line: print(line, file=sys.stderr, flush=True))
-    output = Path(args.output)
     output.parent.mkdir(parents=True, exist_ok=True)
     output.write_text(text, encoding="utf-8")
     print(text)

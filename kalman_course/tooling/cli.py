@@ -22,12 +22,14 @@ from pathlib import Path
 
 
 def _cmd_execute(args: argparse.Namespace) -> int:
-    from kalman_course.tooling.notebooks import execute_notebook
+    from kalman_course.tooling.notebooks import execute_notebook, load_notebook
 
     paths = _expand_notebooks(args.paths)
     if not paths:
         print("error: no notebooks found in " + " ".join(args.paths), file=sys.stderr)
         return 2
+    for path in paths:  # a file that is not a notebook stops the command before any runs
+        load_notebook(path)
     from nbclient.exceptions import CellExecutionError
 
     failed = []
@@ -35,10 +37,6 @@ def _cmd_execute(args: argparse.Namespace) -> int:
         print(f"[{i}/{len(paths)}] executing {path} ...", flush=True)
         try:
             elapsed = execute_notebook(path, timeout=args.timeout)
-        except FileNotFoundError as exc:
-            print(f"        error: {exc}", flush=True)
-            failed.append(path)
-            continue
         except CellExecutionError as exc:
             last = [line for line in str(exc).strip().splitlines() if line.strip()][-1]
             print(f"        FAILED, file left unchanged: {grading_summary(last)}", flush=True)
@@ -56,7 +54,7 @@ def grading_summary(line: str) -> str:
 
 
 def _cmd_build(args: argparse.Namespace) -> int:
-    from kalman_course.tooling.authoring import BuildRefused, build_all
+    from kalman_course.tooling.authoring import AuthoringError, BuildRefused, build_all
 
     try:
         changed = build_all(args.solutions, args.exercises, check=args.check, force=args.force)
@@ -70,6 +68,9 @@ def _cmd_build(args: argparse.Namespace) -> int:
         print("copy your work elsewhere, or run `kalman-course build --force` to overwrite them and keep each "
               "as NN_name.ipynb.bak beside it", file=sys.stderr)
         return 1
+    except AuthoringError as exc:  # a solution's fix regions or grader cells: nothing was written
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     if args.check:
         if changed:
             print("exercises/ is out of sync with solutions/; run `kalman-course build`:", file=sys.stderr)
@@ -165,7 +166,10 @@ def _grade(args: argparse.Namespace) -> int:
             print(f"  {line}", file=sys.stderr)
         return 2
     args.sandbox_text = sandbox.describe() if sandbox else "none (--no-sandbox)" if args.no_sandbox else "none"
-    return _report(results, args)
+    code = _report(results, args)
+    for line in gradebook.ungraded_lines(results):
+        print(f"error: {line}", file=sys.stderr)
+    return code
 
 
 def _checks_of(submissions, release) -> set[str]:
@@ -319,7 +323,7 @@ def _cmd_export(args: argparse.Namespace) -> int:
             return 2
         notebooks = _expand_notebooks(args.paths or ["notebooks"])
         if not notebooks:
-            print("error: no notebooks to export", file=sys.stderr)
+            print(f"error: no notebooks to export in {' '.join(args.paths or ['notebooks'])}", file=sys.stderr)
             return 2
         print(f"exporting {len(notebooks)} notebook(s) to HTML ...", flush=True)
         try:
@@ -336,7 +340,10 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 def _cmd_data_build(args: argparse.Namespace) -> int:
     from kalman_course.data.build import main as build_main
+    from kalman_course.tooling.notebooks import require_output
 
+    if args.out:  # before anything is downloaded
+        require_output(args.out, "the folder to write the excerpts to (--out)", folder=True)
     return build_main(["--out", args.out] if args.out else [])
 
 
@@ -449,6 +456,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     from kalman_course.tooling import sealed
+    from kalman_course.tooling.notebooks import InputError
 
     if argv is None and sys.argv[1:2] == ["grade"] and not sealed.is_sealed():
         # grade in a sealed interpreter: no user site, no bytecode read or written (see sealed)
@@ -468,7 +476,10 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:  # Ctrl-C before or after the kernels ran (during them: see _cmd_grade)
         print("\ninterrupted", file=sys.stderr)
         return 130
-    except (FileNotFoundError, NotADirectoryError, PermissionError) as exc:
+    except InputError as exc:  # a path the user gave that is missing, of the other kind, or not what it should be
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except (FileNotFoundError, NotADirectoryError, IsADirectoryError, PermissionError) as exc:
         # a path the user gave (or the repository's folders, run from elsewhere): one line, no traceback
         where = f": {exc.filename}" if getattr(exc, "filename", None) else ""
         print(f"error: {exc.strerror or exc}{where}", file=sys.stderr)

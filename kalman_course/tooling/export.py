@@ -13,6 +13,8 @@ import re
 import shutil
 from pathlib import Path
 
+from kalman_course.tooling.notebooks import load_notebook, require_output
+
 REMOTE_SCRIPT_RE = re.compile(r'<script[^>]*src="https?://[^"]*"[^>]*>\s*</script>\s*')
 
 #: Every file the export writes carries this line near its top (a TeX, Markdown or HTML
@@ -45,6 +47,10 @@ def refuse_foreign(paths) -> None:
         if not own:
             raise FileExistsError(f"{path} exists and was not written by kalman-course export: not replaced "
                                   "(move it, or export to another folder with -o); nothing was written")
+
+
+#: What ``-o`` must be, as the errors say it.
+OUTPUT_FOLDER = "the folder to export to (-o), or a place to make it"
 
 
 def _write(path: Path, text: str) -> None:
@@ -176,7 +182,7 @@ def export_derivations(fmt: str, out_dir: str | Path) -> Path:
     (handout), ``derivation-slides.tex`` (beamer) or ``derivations.md``."""
     if fmt not in ("tex", "md", "beamer"):
         raise ValueError(f"fmt must be 'tex', 'beamer' or 'md', got {fmt!r}")
-    out_dir = Path(out_dir)
+    out_dir = require_output(out_dir, OUTPUT_FOLDER, folder=True)
     path = out_dir / ("derivation-slides.tex" if fmt == "beamer" else f"derivations.{fmt}")
     refuse_foreign([path])
     text = {"tex": derivations_latex, "beamer": derivations_beamer, "md": derivations_markdown}[fmt](all_derivations())
@@ -269,25 +275,25 @@ def export_notebooks_html(notebooks: list[Path], out_dir: str | Path, progress=N
     """Write each notebook as an HTML page using a local MathJax, plus ``index.html``.
 
     Page names come from :func:`page_names`. Nothing is written if a page or the index would
-    replace a file the export did not write (:func:`refuse_foreign`).
+    replace a file the export did not write (:func:`refuse_foreign`), if ``out_dir`` cannot be a
+    folder, or if one of the notebooks is not one (a ``NotebookError`` names it).
 
     The pages form a small site in the order given: each has previous / index / next links
     at its top and bottom, and the index lists every page's title with the first sentence
     of its introduction.
     """
-    import nbformat
-    from nbconvert import HTMLExporter
-
-    out_dir = Path(out_dir)
+    nbs = [load_notebook(path) for path in notebooks]  # every one, before anything is written
+    out_dir = require_output(out_dir, OUTPUT_FOLDER, folder=True)
     names = page_names(notebooks)
     refuse_foreign([out_dir / "index.html", *(out_dir / name for name in names)])
+    from nbconvert import HTMLExporter
+
     out_dir.mkdir(parents=True, exist_ok=True)
     target = out_dir / "mathjax"
     if not (target / "MathJax.js").is_file():
         shutil.copytree(mathjax_dir(), target, dirs_exist_ok=True)
     exporter = HTMLExporter(template_name="lab")
     exporter.mathjax_url = "mathjax/MathJax.js?config=TeX-AMS-MML_HTMLorMML-full"
-    nbs = [nbformat.read(str(path), as_version=4) for path in notebooks]
     pages = [(out_dir / name, notebook_title_and_summary(nb)[0] or Path(path).stem)
              for name, path, nb in zip(names, notebooks, nbs)]
     written = []

@@ -28,7 +28,8 @@ from collections import Counter, defaultdict
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from kalman_course.tooling.grading import RAN_TO_THE_END, CheckResult, NotebookResult, shard_of
+from kalman_course.tooling.grading import NOT_A_NOTEBOOK, RAN_TO_THE_END, CheckResult, NotebookResult, shard_of
+from kalman_course.tooling.notebooks import InputError, blocking_file, read_text
 
 #: What a JSON gradebook says it is; version 2 added the run record and the signature.
 FORMAT, VERSION = "kalman-course gradebook", 2
@@ -214,6 +215,13 @@ def format_summary(results: list[NotebookResult]) -> str:
     return "\n".join(lines)
 
 
+def ungraded_lines(results: list[NotebookResult]) -> list[str]:
+    """One console line per file that could not be read as a notebook, naming it and why (the
+    error lines a grading run ends with)."""
+    return [console_text(f"{r.path} was not graded: {r.detail}; expected a Jupyter notebook")
+            for r in results if r.status == NOT_A_NOTEBOOK]
+
+
 # --- who is who, and where the gradebooks may go ----------------------------------------------
 
 def feedback_name(learner: str) -> str:
@@ -290,8 +298,8 @@ def refuse_unsafe_outputs(csv_path=None, json_path=None, feedback_dir=None, *, l
     ------
     ValueError
         Naming each output that is one of the protected files, lies inside the release folder,
-        is an existing folder where a file goes (or a file where the folder goes), or is given
-        to both ``--csv`` and ``--json``.
+        is an existing folder where a file goes (or a file where the folder goes), would be made
+        in a folder that is a file, or is given to both ``--csv`` and ``--json``.
     """
     files = [(option, Path(p)) for option, p in (("--csv", csv_path), ("--json", json_path)) if p]
     problems = [f"{option} {path} is a folder" for option, path in files if path.is_dir()]
@@ -304,6 +312,8 @@ def refuse_unsafe_outputs(csv_path=None, json_path=None, feedback_dir=None, *, l
             problems.append(f"--feedback {folder} is a file, not a folder")
         places.append(("--feedback", folder))
         files += [("--feedback", folder / f"{feedback_name(learner)}.md") for learner in sorted(set(learners))]
+    problems += [f"{option} {path}: {blocked} is a file, not a folder" for option, path in places
+                 if (blocked := blocking_file(path)) is not None]
     kept = [_identity(Path(p)) for p in protected]
     kept_paths, kept_files = {p for p, _ in kept}, {f for _, f in kept if f}
     for option, path in files:
@@ -592,6 +602,15 @@ def _run_problem(run) -> str:
     return ""
 
 
+def _record_name(record) -> str:
+    """``learner 'alice' ('class/alice/03_kf.ipynb'): `` of a result record, as far as it says."""
+    if not isinstance(record, dict):
+        return ""
+    named = [f"learner {_quoted(record['learner'])}" if isinstance(record.get("learner"), str) else "",
+             f"({_quoted(record['path'])})" if isinstance(record.get("path"), str) else ""]
+    return " ".join(word for word in named if word) + ": " if any(named) else ""
+
+
 def _record_problem(record, i: int) -> str:
     where = f"results[{i}]"
     problem = _fields_problem(record, _TYPES, [*_RESULT_FIELDS, *_TOTALS], [], where)
@@ -601,7 +620,7 @@ def _record_problem(record, i: int) -> str:
     for j, check in enumerate(record["checks"] if not problem else []):
         problem = problem or _fields_problem(check, _CHECK_TYPES, [f for f in _CHECK_FIELDS if f != "in_kernel"],
                                              ["in_kernel"], f"{where}.checks[{j}]")
-    return problem
+    return problem and _record_name(record) + problem
 
 
 def _document_problem(document) -> str:
@@ -623,6 +642,19 @@ def _document_problem(document) -> str:
         (p for i, record in enumerate(document["results"]) if (p := _record_problem(record, i))), "")
 
 
+#: What a gradebook file must be, as the errors say it.
+GRADEBOOK = "a gradebook written by `kalman-course grade --json`"
+
+
+class GradebookError(InputError):
+    """A file is not a JSON gradebook of this course (the message names it and says why)."""
+
+    template = "{path}: not {expected} ({problem})"
+
+    def __init__(self, path, problem: str, expected: str = GRADEBOOK):
+        super().__init__(path, problem, expected)
+
+
 def read_json(path) -> Gradebook:
     """A gradebook written by :func:`json_text` (a whole class's or one shard's), checked for shape.
 
@@ -631,18 +663,19 @@ def read_json(path) -> Gradebook:
 
     Raises
     ------
-    ValueError
-        If the file is not such a gradebook (the message names the file and what is wrong).
+    GradebookError
+        If the file is not such a gradebook (the message names the file and what is wrong), or
+        is missing, a folder, unreadable, empty or not UTF-8.
     """
+    text = read_text(path, GRADEBOOK, GradebookError)  # missing, a folder, unreadable, empty, not UTF-8
     try:
-        document = json.loads(Path(path).read_text(encoding="utf-8"), object_pairs_hook=_unique_keys,
-                              parse_constant=_no_constant)
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        document = json.loads(text, object_pairs_hook=_unique_keys, parse_constant=_no_constant)
+    except ValueError as exc:  # not JSON, a key twice, NaN or Infinity
         problem = f"{type(exc).__name__}: {exc}"
     else:
         problem = _document_problem(document)
     if problem:
-        raise ValueError(f"{path}: not a gradebook written by `kalman-course grade --json` ({problem})")
+        raise GradebookError(path, problem)
     results = []
     for record in document["results"]:
         fields = {name: record[name] for name in _RESULT_FIELDS}

@@ -32,7 +32,7 @@ from pathlib import Path
 from kalman_course.tooling.cells import CHECK_OUTPUT_TAG, GRADER_TAG, grader_info, is_challenge
 from kalman_course.tooling.copied import copy_flags
 from kalman_course.tooling.identify import Identified, cell_metadata, cell_tags, identify_cells, same_code
-from kalman_course.tooling.notebooks import NotebookError, read_notebook
+from kalman_course.tooling.notebooks import NotebookError, read_notebook, require_folder
 from kalman_course.tooling.review import review_flags
 from kalman_course.tooling import withheld
 
@@ -147,10 +147,16 @@ def chapter_of_notebook(nb, path: Path, known=None) -> str:
 
 
 def load_release(release_dir: str | Path) -> dict:
-    """Read the released exercises, keyed by chapter."""
+    """Read the released exercises, keyed by chapter.
+
+    Raises ``FileNotFoundError`` when the folder is missing and an
+    :class:`~kalman_course.tooling.notebooks.InputError` naming it when it is a file, or naming
+    the exercise that is not a notebook.
+    """
     release_dir = Path(release_dir)
-    if not release_dir.is_dir():
+    if not release_dir.exists():
         raise FileNotFoundError(f"release folder not found: {release_dir} (pass --release DIR)")
+    require_folder(release_dir, "the folder of the released exercises (--release DIR)")
     release = {}
     for path in sorted(release_dir.glob("[0-9][0-9]_*.ipynb")):
         nb = read_notebook(path)
@@ -605,12 +611,12 @@ def read_submission(path: Path):
     if path.is_file() and path.stat().st_size > MAX_NOTEBOOK:  # read whole, it would fill the grader's memory
         return None, (f"{path.stat().st_size / 2**20:.0f} MiB, more than the {MAX_NOTEBOOK // 2**20} MiB "
                       "a notebook may be (clear its outputs and save it again)")
+    if not path.exists():
+        return None, f"no such file: {path}"
     try:
         return read_notebook(path), ""
-    except FileNotFoundError:
-        return None, f"no such file: {path}"
-    except (NotebookError, OSError) as exc:  # corrupt JSON, empty file, not a notebook at all
-        return None, f"cannot read it as a notebook: {exc}"
+    except NotebookError as exc:  # unreadable, corrupt JSON, empty file, not a notebook at all
+        return None, f"cannot read it as a notebook: {exc.problem}"
 
 
 def grade_notebook(path: str | Path, release: dict, *, timeout: float = 120.0,

@@ -19,8 +19,97 @@ from pathlib import Path
 NBFORMAT_MINOR = 5
 
 
-class NotebookError(ValueError):
-    """A file is not a readable Jupyter notebook (the message says why)."""
+#: What a notebook file must be, as the errors say it.
+NOTEBOOK = "a Jupyter notebook (JSON, nbformat 4)"
+
+
+class InputError(ValueError):
+    """A file or folder given to a command cannot be used: it is missing or of the other kind
+    (a file for a folder), unreadable, not UTF-8, empty, or not what it should be.
+
+    ``path`` names it, ``problem`` says what is wrong and ``expected`` what it should have been.
+    The command line (:func:`kalman_course.tooling.cli.main`) prints it as one error line and
+    exits with status 2.
+    """
+
+    template = "{path}: {problem}; expected {expected}"
+
+    def __init__(self, path, problem: str, expected: str):
+        self.path, self.problem, self.expected = str(path), problem, expected
+        super().__init__(self.template.format(path=path, problem=problem, expected=expected))
+
+
+class NotebookError(InputError):
+    """A file is not a readable Jupyter notebook (the message names it and says why)."""
+
+    def __init__(self, path, problem: str, expected: str = NOTEBOOK):
+        super().__init__(path, problem, expected)
+
+
+def read_text(path: str | Path, expected: str, error: type[InputError] = InputError) -> str:
+    """The UTF-8 text of the file at ``path``.
+
+    Raises ``error`` (an :class:`InputError`) naming the file and ``expected`` when it is
+    missing, a folder, unreadable, empty (or only blanks) or not UTF-8 text.
+    """
+    path = Path(path)
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read()
+    except FileNotFoundError:
+        raise error(path, "no such file", expected) from None
+    except IsADirectoryError:
+        raise error(path, "a folder, not a file", expected) from None
+    except NotADirectoryError:
+        raise error(path, f"no such file ({blocking_file(path)} is a file, not a folder)", expected) from None
+    except PermissionError:
+        raise error(path, "cannot be read (permission denied)", expected) from None
+    except OSError as exc:
+        raise error(path, f"cannot be read ({exc.strerror or exc})", expected) from None
+    if not data.strip():
+        raise error(path, "an empty file", expected)
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise error(path, f"not UTF-8 text (byte {exc.start} is not UTF-8)", expected) from None
+
+
+def json_problem(exc: json.JSONDecodeError) -> str:
+    """What a JSON parse error says about the file: cut short, or where it is not JSON."""
+    if exc.pos >= len(exc.doc.rstrip()) or exc.msg.startswith("Unterminated string"):
+        end = exc.doc.rstrip().count("\n") + 1
+        return f"not JSON: it stops at line {end} before the JSON ends (cut short?)"
+    return f"not JSON ({exc.msg}: line {exc.lineno}, column {exc.colno})"
+
+
+def blocking_file(path: str | Path) -> Path | None:
+    """The file that stands where a folder on the way to ``path`` should be (``a`` of a
+    missing ``a/b/c`` when ``a`` is a file), or None."""
+    for parent in Path(path).parents:
+        if parent.exists():
+            return None if parent.is_dir() else parent
+    return None
+
+
+def require_folder(path: str | Path, expected: str) -> Path:
+    """``path`` as a Path when it is an existing folder; else :class:`InputError` naming it."""
+    path = Path(path)
+    if not path.is_dir():
+        raise InputError(path, "a file, not a folder" if path.exists() else "no such folder", expected)
+    return path
+
+
+def require_output(path: str | Path, expected: str, *, folder: bool) -> Path:
+    """``path`` as a Path when a command may make it or write into it (a folder when ``folder``,
+    else a file): :class:`InputError` naming it when it exists as the other kind, or when a
+    file stands where one of its parent folders would be made."""
+    path = Path(path)
+    if path.exists() and path.is_dir() != folder:
+        raise InputError(path, "a file, not a folder" if folder else "a folder, not a file", expected)
+    blocked = None if path.exists() else blocking_file(path)
+    if blocked is not None:
+        raise InputError(path, f"{blocked} is a file, not a folder", expected)
+    return path
 
 
 class Node(dict):
@@ -43,40 +132,103 @@ def read_notebook(path: str | Path) -> Node:
     Multi-line sources and output texts stored as lists of lines are joined, as nbformat
     does. Any minor version is read, and cell ids and tags are left as they are, whatever
     they are (a list, a number, missing, in ``metadata.id`` as Colab keeps them):
-    :mod:`kalman_course.tooling.identify` decides what they say. Raises ``FileNotFoundError`` for a missing file and :class:`NotebookError` for
-    anything that is not a version-4 notebook (empty, corrupt JSON, no cell list, ...).
+    :mod:`kalman_course.tooling.identify` decides what they say. Raises
+    :class:`NotebookError` naming the file for anything that is not a version-4 notebook
+    (missing, a folder, unreadable, not UTF-8, empty, corrupt or cut-short JSON, another
+    nbformat, no cell list, a cell without a source, ...).
     """
-    try:
-        nb = json.loads(Path(path).read_text(encoding="utf-8"), object_hook=Node)
-    except UnicodeDecodeError:
-        raise NotebookError("not UTF-8 text") from None
-    except json.JSONDecodeError as exc:
-        raise NotebookError(f"not JSON ({exc.msg} at line {exc.lineno})") from None
-    if not isinstance(nb, Node) or nb.get("nbformat") != 4:
-        raise NotebookError("not a version-4 notebook (no \"nbformat\": 4)")
-    if not isinstance(nb.get("cells"), list) or not isinstance(nb.get("metadata", {}), dict):
-        raise NotebookError("its cells are not a list")
-    nb.setdefault("metadata", Node())
-    for i, cell in enumerate(nb.cells):
-        if not isinstance(cell, Node) or cell.get("cell_type") not in ("code", "markdown", "raw"):
-            raise NotebookError(f"cell {i} is not a code, markdown or raw cell")
-        cell["source"] = _joined(cell.get("source", ""), f"cell {i}'s source")
-        if not isinstance(cell.setdefault("metadata", Node()), dict):
-            raise NotebookError(f"cell {i}'s metadata is not an object")
-        if cell.cell_type == "code":
-            if not isinstance(cell.setdefault("outputs", []), list):
-                raise NotebookError(f"cell {i}'s outputs are not a list")
-            for out in cell.outputs:
-                if isinstance(out, Node) and "text" in out:
-                    out["text"] = _joined(out["text"], f"an output of cell {i}")
+    return _checked(_parsed(read_text(path, NOTEBOOK, NotebookError), path), path)
+
+
+def load_notebook(path: str | Path):
+    """Read a version-4 notebook as nbformat reads it (a ``NotebookNode``), for the commands
+    that run, build or export one: whatever :func:`read_notebook` refuses, and whatever else
+    nbformat's schema refuses, is a :class:`NotebookError` naming the file."""
+    from nbformat import reader
+
+    text = read_text(path, NOTEBOOK, NotebookError)
+    _checked(_parsed(text, path), path)
+    nb = reader.reads(text)
+    problem = _schema_problem(nb)
+    if problem:
+        raise NotebookError(path, problem)
     return nb
 
 
-def _joined(text, what: str) -> str:
+def _parsed(text: str, path) -> Node:
+    try:
+        return json.loads(text, object_hook=Node)
+    except json.JSONDecodeError as exc:
+        raise NotebookError(path, json_problem(exc)) from None
+
+
+def _kind(value) -> str:
+    return {dict: "an object", Node: "an object", list: "a list", str: "a string"}.get(type(value), "a number")
+
+
+def _checked(nb, path) -> Node:
+    """``nb`` (parsed JSON) with its sources and output texts joined; :class:`NotebookError`
+    naming ``path`` if it is not a version-4 notebook."""
+    if not isinstance(nb, Node) or "nbformat" not in nb:
+        raise NotebookError(path, f"JSON, but not a notebook ({_kind(nb)} without \"nbformat\")")
+    if nb["nbformat"] != 4:
+        raise NotebookError(path, f"a notebook of nbformat {nb['nbformat']!r}, not 4 (JupyterLab converts it "
+                                  "when it opens and saves it)")
+    if not isinstance(nb.get("cells"), list):
+        raise NotebookError(path, "a notebook without a list of cells (\"cells\")")
+    if not isinstance(nb.setdefault("metadata", Node()), dict):
+        raise NotebookError(path, "its metadata is not an object")
+    for i, cell in enumerate(nb.cells, 1):
+        if not isinstance(cell, Node) or cell.get("cell_type") not in ("code", "markdown", "raw"):
+            raise NotebookError(path, f"cell {i} is not a code, markdown or raw cell")
+        if "source" not in cell:
+            raise NotebookError(path, f"cell {i} has no source")
+        cell["source"] = _joined(cell["source"], f"cell {i}'s source", path)
+        if not isinstance(cell.setdefault("metadata", Node()), dict):
+            raise NotebookError(path, f"cell {i}'s metadata is not an object")
+        if cell.cell_type == "code":
+            if not isinstance(cell.setdefault("outputs", []), list):
+                raise NotebookError(path, f"cell {i}'s outputs are not a list")
+            for out in cell.outputs:
+                if isinstance(out, Node) and "text" in out:
+                    out["text"] = _joined(out["text"], f"an output of cell {i}", path)
+    return nb
+
+
+def _schema_problem(nb) -> str:
+    """What nbformat's schema refuses in ``nb`` ('' if nothing), where it is and why, briefly."""
+    import warnings
+
+    import nbformat
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a cell without an id: normalise gives it one
+        try:
+            nbformat.validate(nb)
+        except nbformat.ValidationError as exc:
+            message = " ".join(str(getattr(exc, "message", exc)).split())
+            message = message if len(message) <= 160 else message[:157] + "..."
+            return f"not a valid notebook: {_schema_place(getattr(exc, 'absolute_path', []))}: {message}"
+    return ""
+
+
+def _schema_place(keys) -> str:
+    """``cell 3, output 1, name`` for the schema path ``cells, 2, outputs, 0, name``."""
+    keys, words = list(keys), []
+    while keys:
+        key = keys.pop(0)
+        if key in ("cells", "outputs") and keys and isinstance(keys[0], int):
+            words.append(f"{key[:-1]} {keys.pop(0) + 1}")  # cells → cell, outputs → output
+        else:
+            words.append(str(key))
+    return ", ".join(words) or "the notebook"
+
+
+def _joined(text, what: str, path) -> str:
     if isinstance(text, list) and all(isinstance(line, str) for line in text):
         return "".join(text)
     if not isinstance(text, str):
-        raise NotebookError(f"{what} is not text")
+        raise NotebookError(path, f"{what} is not text")
     return text
 
 
@@ -173,7 +325,8 @@ def execute_notebook(path: str | Path, *, timeout: int = 600, kernel_name: str =
     """Run every cell of the notebook at ``path`` in a new kernel and store the outputs.
 
     The kernel starts in the notebook's folder. A cell that raises stops the run and
-    leaves the file unchanged.
+    leaves the file unchanged; a file that is not a notebook (:func:`load_notebook`) is not
+    run and not changed.
 
     Returns
     -------
@@ -181,11 +334,7 @@ def execute_notebook(path: str | Path, *, timeout: int = 600, kernel_name: str =
         Wall time of the run in seconds.
     """
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"notebook not found: {path}")
-    import nbformat
-
-    nb = nbformat.read(path, as_version=4)
+    nb = load_notebook(path)
     elapsed = run_cells(nb, path.parent, timeout=timeout, kernel_name=kernel_name)
     write_notebook(normalise(nb), path)
     return elapsed
