@@ -28,6 +28,7 @@ import numpy as np
 
 from kalman_course.core import linalg, so3
 from kalman_course.core.observations import PoseObservations
+from kalman_course.core.validation import as_covariance, as_flag, as_int, as_scalar
 from kalman_course.data import GaussMarkovErrors, WhiteErrors, imu_trajectory, simulate_lidar_poses
 from kalman_course.evaluation import metrics
 from kalman_course.evaluation.consistency import (VERDICTS, Whiteness, average_band, gate_threshold,
@@ -166,9 +167,8 @@ def scaled_config(config="kitti_lidar", q_factor: float = 1.0, r_factor: float =
     R scales the lidar and GNSS variances (standard deviations × √r). Bias random walks and
     the prior are left alone.
     """
-    cfg = config if isinstance(config, EskfConfig) else load_config(config)
-    if q_factor <= 0 or r_factor <= 0:
-        raise ValueError(f"factors must be positive, got q_factor={q_factor!r}, r_factor={r_factor!r}")
+    cfg = _config(config)
+    q_factor, r_factor = as_scalar(q_factor, "q_factor"), as_scalar(r_factor, "r_factor")
     q, r = float(np.sqrt(q_factor)), float(np.sqrt(r_factor))
     d, lid = cfg.process_density, cfg.lidar_std
     return cfg.replace(process__accel_noise=d[0] * q, process__gyro_noise=d[1] * q,
@@ -226,6 +226,19 @@ class SensitivityRow:
     nis_verdict: str
 
 
+def _config(config) -> EskfConfig:
+    """``config`` (an EskfConfig, a configuration name, a YAML path or a mapping) loaded;
+    anything else is a ValueError naming ``config``."""
+    if isinstance(config, EskfConfig):
+        return config
+    try:
+        return load_config(config)
+    except ValueError as exc:
+        if "config" in str(exc):
+            raise
+        raise ValueError(f"config: {exc}") from None
+
+
 def combined_verdict(nees_verdict: str, nis_verdict: str) -> str:
     """One verdict from the NEES test and the NIS test, saying which statistic failed.
 
@@ -242,9 +255,9 @@ def combined_verdict(nees_verdict: str, nis_verdict: str) -> str:
         only, joined by ", ", e.g. "overconfident (NEES)" or
         "underconfident (NEES), overconfident (NIS)".
     """
-    for v in (nees_verdict, nis_verdict):
-        if v not in VERDICTS:
-            raise ValueError(f"a verdict must be one of {VERDICTS}, got {v!r}")
+    for v, name in ((nees_verdict, "nees_verdict"), (nis_verdict, "nis_verdict")):
+        if not isinstance(v, str) or v not in VERDICTS:
+            raise ValueError(f"{name}: a verdict must be one of {VERDICTS}, got {v!r}")
     if nees_verdict == nis_verdict:
         return f"{nees_verdict} (NEES and NIS)"
     return ", ".join(f"{v} ({name})" for v, name in ((nees_verdict, "NEES"), (nis_verdict, "NIS"))
@@ -530,9 +543,15 @@ def run_gated(excerpt, lidar=None, config="kitti_lidar", confidence: float | Non
 # Numerical failures of the covariance update and their repair
 # ---------------------------------------------------------------------------------------
 
-def _float(value) -> np.ndarray:
-    """``value`` as an array of its own floating type (float32 stays float32), else float64."""
-    arr = np.asarray(value)
+def _float(value, name: str = "value") -> np.ndarray:
+    """``value`` as an array of its own floating type (float32 stays float32), else float64;
+    anything that holds no real numbers is a ValueError naming ``name``."""
+    try:
+        arr = np.asarray(value)
+    except ValueError:                       # ragged nested sequences
+        raise ValueError(f"{name} must be a real matrix, got a ragged sequence") from None
+    if arr.dtype.kind not in "fiub" or arr.dtype.kind == "b":
+        raise ValueError(f"{name} must be a real matrix, got {type(value).__name__} of dtype {arr.dtype}")
     return arr if np.issubdtype(arr.dtype, np.floating) else arr.astype(float)
 
 
@@ -585,7 +604,11 @@ def joseph_update(P, K, G, R) -> np.ndarray:
     numpy.ndarray, shape (n, n)
     """
     P, K, G = _gallery_inputs(P, K, G)
-    R = _float(R)
+    R = _float(R, "R")
+    if R.shape == (G.shape[0], G.shape[0]) and not np.isfinite(R).all():
+        raise ValueError("R must be finite, got NaN or inf")
+    if R.shape == (G.shape[0], G.shape[0]):
+        as_covariance(R, "R", G.shape[0], psd=True)
     if R.shape != (G.shape[0], G.shape[0]):
         raise ValueError(f"R must have shape ({G.shape[0]}, {G.shape[0]}) to match G, got {R.shape}")
     return linalg.joseph_form(P, K, G, R, I=np.eye(P.shape[0], dtype=P.dtype))
@@ -593,10 +616,10 @@ def joseph_update(P, K, G, R) -> np.ndarray:
 
 def _gallery_inputs(P, K, G) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """P (n, n), K (n, m), G (m, n) of matching shapes, in their floating type."""
-    P, K, G = _float(P), _float(K), _float(G)
+    P, K, G = _float(P, "P"), _float(K, "K"), _float(G, "G")
     for arr, name in ((P, "P"), (K, "K"), (G, "G")):
-        if arr.ndim != 2 or not np.isfinite(arr).all():
-            raise ValueError(f"{name} must be a finite 2-D matrix, got shape {arr.shape}")
+        if arr.ndim != 2 or not np.isfinite(arr).all() or arr.size == 0:
+            raise ValueError(f"{name} must be a finite, non-empty 2-D matrix, got shape {arr.shape}")
     n = P.shape[0]
     if P.shape != (n, n) or K.shape[0] != n or G.shape != (K.shape[1], n):
         raise ValueError(f"need P (n, n), K (n, m) and G (m, n); got P {P.shape}, K {K.shape}, G {G.shape}")
@@ -609,15 +632,21 @@ def symmetrise(P) -> np.ndarray:
     :func:`kalman_course.core.linalg.symmetrise` (what every filter in the course calls),
     for any array_like square matrix; computed in its floating type.
     """
-    P = _float(P)
-    if P.ndim != 2 or P.shape[0] != P.shape[1]:
+    P = _float(P, "P")
+    if P.ndim != 2 or P.shape[0] != P.shape[1] or P.size == 0:
         raise ValueError(f"P must be a square matrix, got shape {P.shape}")
+    if not np.isfinite(P).all():
+        raise ValueError("P must be finite, got NaN or inf")
     return linalg.symmetrise(P)
 
 
 def covariance_health(P) -> tuple[float, float]:
     """(asymmetry max|P − Pᵀ| / max|P|, smallest eigenvalue of the symmetric part ½(P + Pᵀ))."""
-    P = np.asarray(P, dtype=float)
+    P = _float(P, "P").astype(float)
+    if P.ndim != 2 or P.shape[0] != P.shape[1] or P.size == 0:
+        raise ValueError(f"P must be a square matrix, got shape {P.shape}")
+    if not np.isfinite(P).all():
+        raise ValueError("P must be finite, got NaN or inf")
     scale = max(float(np.max(np.abs(P))), 1e-300)
     return float(np.max(np.abs(P - P.T)) / scale), float(np.linalg.eigvalsh(symmetrise(P)).min())
 
@@ -633,9 +662,18 @@ def roundoff_experiment(dtype=np.float64, form: str = "simple", symmetric: bool 
     asymmetry and the smallest eigenvalue seen (see :func:`covariance_health`); a negative
     eigenvalue means P lost positive definiteness.
     """
-    dtype = np.dtype(dtype).type
-    if form not in ("simple", "joseph"):
+    try:
+        dtype = np.dtype(dtype).type
+    except TypeError:
+        raise ValueError(f"dtype must be a floating type such as numpy.float32, got {dtype!r}") from None
+    if not np.issubdtype(dtype, np.floating):
+        raise ValueError(f"dtype must be a floating type such as numpy.float32, got {dtype!r}")
+    if not isinstance(form, str) or form not in ("simple", "joseph"):
         raise ValueError(f"form must be 'simple' or 'joseph', got {form!r}")
+    symmetric = as_flag(symmetric, "symmetric")
+    steps = as_int(steps, "steps", minimum=1)
+    T, r, p0 = as_scalar(T, "T"), as_scalar(r, "r"), as_scalar(p0, "p0")
+    q = as_scalar(q, "q", allow_zero=True)
     F = np.array([[1.0, T], [0.0, 1.0]], dtype=dtype)
     Q = (q * np.array([[T ** 3 / 3, T ** 2 / 2], [T ** 2 / 2, T]])).astype(dtype)
     G = np.array([[1.0, 0.0]], dtype=dtype)

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kalman_course.core import so3
-from kalman_course.core.validation import as_rotation, as_scalar, as_seed, as_vector
+from kalman_course.core.validation import as_real, as_rotation, as_scalar, as_seed, as_vector
 from kalman_course.filters import eskf
 from kalman_course.filters.eskf import IDX_BA, IDX_BW, IDX_P, IDX_TH, IDX_V, NominalState
 
@@ -283,7 +283,7 @@ def flow(state, specific_force, angular_rate, gravity, t: float) -> NominalState
     f = as_vector(specific_force, "specific_force", 3)
     w = as_vector(angular_rate, "angular_rate", 3)
     g = as_vector(gravity, "gravity", 3)
-    t = float(t)
+    t = as_real(t, "t")
     if not np.isfinite(t):
         raise ValueError(f"t must be a finite number of seconds, got {t!r}")
     a, omega = f - x.accel_bias, w - x.gyro_bias
@@ -460,7 +460,7 @@ def velocity_rate(rotation, specific_force, gravity, gravity_sign: float = 1.0) 
     gravity_sign : float
         +1 or −1.
     """
-    if gravity_sign not in (1, -1):
+    if isinstance(gravity_sign, (bool, np.bool_, str)) or gravity_sign not in (1, -1):
         raise ValueError(f"gravity_sign must be +1 or -1, got {gravity_sign!r}")
     R = as_rotation(rotation, "rotation")
     return R @ as_vector(specific_force, "specific_force", 3) + gravity_sign * as_vector(gravity, "gravity", 3)

@@ -39,7 +39,7 @@ import sympy as sp
 
 from kalman_course.chapters.eskf_bias import EARTH_RATE, earth_rate
 from kalman_course.core import so3
-from kalman_course.core.validation import as_matrix, as_rotation, as_rows, as_scalar, as_vector
+from kalman_course.core.validation import as_matrix, as_real_array, as_rotation, as_rows, as_scalar, as_vector
 
 __all__ = [
     "RULES", "coning_attitude", "coning_rate", "coning_rate_integral", "reference_attitude",
@@ -444,8 +444,23 @@ def attitude_error(q_est, q_true) -> np.ndarray:
     numpy.ndarray, shape (N,) or ()
         Angles in [0, π], rad.
     """
+    q_est, q_true = _quaternions(q_est, "q_est"), _quaternions(q_true, "q_true")
+    if q_est.shape != q_true.shape and q_est.ndim == q_true.ndim == 2:
+        raise ValueError(f"q_est and q_true must have the same number of rows, got {q_est.shape} and {q_true.shape}")
     d = so3.quat_multiply(so3.quat_conjugate(so3.quat_normalise(q_true)), so3.quat_normalise(q_est))
     return 2.0 * np.arctan2(np.linalg.norm(d[..., 1:], axis=-1), np.abs(d[..., 0]))
+
+
+def _quaternions(q, name: str) -> np.ndarray:
+    """A quaternion (4,) or a stack (N, 4), finite and non-zero; errors name ``name``."""
+    q = as_real_array(q, name)
+    if q.ndim not in (1, 2) or q.shape[-1] != 4:
+        raise ValueError(f"{name} must have shape (4,) or (N, 4), got {q.shape}")
+    if not np.isfinite(q).all():
+        raise ValueError(f"{name} must be finite, got NaN or inf")
+    if (np.linalg.norm(q, axis=-1) == 0.0).any():
+        raise ValueError(f"{name} must not hold a zero quaternion")
+    return q
 
 
 def _strides(strides) -> list[int]:

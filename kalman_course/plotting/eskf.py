@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from kalman_course.plotting.vocabulary import (COLORS, CURVE_COLORS, _vector, plot_curves, plot_error_with_band,
+from kalman_course.core.validation import as_scalar
+from kalman_course.plotting.vocabulary import (COLORS, CURVE_COLORS, _sigma, _vector, plot_curves, plot_error_with_band,
                                                plot_sigma_band, plot_track, shade_spans)
 
 __all__ = ["plot_track_with_zoom", "plot_pose_errors", "plot_bias_estimates", "plot_bias_sigmas",
@@ -264,7 +265,9 @@ def plot_outage_error(t, error, sigma, outage, *, n_sigma=3, title="", label="ho
     fig, ax = plt.subplots(figsize=figsize)
     shade_spans(ax, [(start, end)], label=outage_label, color="0.93")
     # a band from 0 to n·σ: centred at n·σ/2 with half-width n·σ/2
-    half = 0.5 * np.asarray(sigma, dtype=float)
+    sigma = _sigma(sigma, "sigma", t.shape[0])
+    n_sigma = as_scalar(n_sigma, "n_sigma")
+    half = 0.5 * sigma
     plot_sigma_band(ax, t, n_sigma * half, half, n_sigma, label=f"0 to {n_sigma:g}σ")
     ax.plot(t, error, color=COLORS["estimate"], lw=1.0, label=label)
     ax.set(xlabel="t [s]", ylabel=f"{label} [m]", title=title, ylim=(0, None))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from kalman_course.core.validation import as_scalar
+from kalman_course.core.validation import as_real, as_scalar
 from kalman_course.plotting.vocabulary import (COLORS, _covariance2, _vector, plot_covariance_ellipse,
                                                plot_samples)
 
@@ -44,7 +44,8 @@ def plot_conditioning(mean, cov, y_obs, cond_mean, cond_var, *, samples=None, n_
 
     mean = _vector(mean, "mean", n=2)
     cov = _covariance2(cov)
-    y_obs, cond_mean, cond_var = float(y_obs), float(cond_mean), float(cond_var)
+    y_obs, cond_mean = as_real(y_obs, "y_obs"), as_real(cond_mean, "cond_mean")
+    cond_var = as_scalar(cond_var, "cond_var")
     if not all(np.isfinite([y_obs, cond_mean, cond_var])) or cond_var <= 0:
         raise ValueError("y_obs and cond_mean must be finite and cond_var > 0")
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=figsize)

@@ -79,7 +79,7 @@ def _vector(value, name: str, *, allow_nan: bool = False, n: int | None = None) 
 
 
 def _sigma(value, name: str, n: int) -> np.ndarray:
-    arr = np.asarray(value, dtype=float)
+    arr = as_real_array(value, name)
     if arr.ndim == 0:
         arr = np.full(n, float(arr))
     arr = _vector(arr, name, n=n)
@@ -211,7 +211,7 @@ def plot_sigma_band(ax, t, center, sigma, n_sigma=3, *, label=None, **kwargs):
     """
     t = _vector(t, "t")
     n = t.shape[0]
-    c = np.asarray(center, dtype=float)
+    c = as_real_array(center, "center")
     c = _vector(np.full(n, float(c)) if c.ndim == 0 else c, "center", n=n)
     s = _sigma(sigma, "sigma", n)
     k = as_scalar(n_sigma, "n_sigma")

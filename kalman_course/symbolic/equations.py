@@ -28,6 +28,8 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 import sympy as sp
+
+from kalman_course.core.validation import as_int
 from sympy.matrices.expressions import BlockMatrix, MatrixExpr, MatrixSymbol, ZeroMatrix
 from sympy.polys.fields import sfield
 from sympy.polys.matrices import DomainMatrix
@@ -394,6 +396,9 @@ def symbol_matrix(name: str, rows: int, cols: int, *, symmetric: bool = False) -
         If True (requires a square shape) entries ``(i, j)`` and ``(j, i)`` share one
         symbol, as in a covariance matrix.
     """
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"name must be a non-empty str, got {name!r}")
+    rows, cols = as_int(rows, "rows", minimum=1), as_int(cols, "cols", minimum=1)
     if symmetric and rows != cols:
         raise ValueError(f"a symmetric matrix must be square, got {rows}x{cols}")
 

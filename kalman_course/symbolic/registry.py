@@ -68,6 +68,8 @@ def derivation(name: str) -> Derivation:
         If there is no such derivation; the message lists the known names.
     """
     known = builders()
+    if not isinstance(name, str):
+        raise ValueError(f"name must be the name (str) of a derivation, one of {list(known)}; got {name!r}")
     if name not in known:
         raise KeyError(f"unknown derivation {name!r}; known: {list(known)}")
     return known[name]()
