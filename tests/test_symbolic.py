@@ -86,7 +86,7 @@ def test_builder_must_return_the_derivation_of_its_name():
 
 
 def test_unknown_derivation_names_the_known_ones():
-    with pytest.raises(KeyError, match="schur_block_inverse"):
+    with pytest.raises(ValueError, match="schur_block_inverse"):
         symbolic.derivation("no_such_thing")
 
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from kalman_course import symbolic
 from kalman_course.core.angles import wrap_angle
-from kalman_course.core.validation import as_flag, as_matrix, as_scalar, as_seed, as_vector
+from kalman_course.core.validation import as_flag, as_matrix, as_real_array, as_scalar, as_seed, as_vector
 from kalman_course.data import load_kitti
 from kalman_course.evaluation.metrics import nees, position_rmse
 from kalman_course.filters.ekf import ekf_predict, ekf_update, iekf_update
@@ -134,7 +134,7 @@ def kitti_beacons(name="turns", seed=1, *, spacing=15.0, offset=4.0, rate_hz=1.0
 
 
 def _beacon_rows(beacons) -> np.ndarray:
-    beacons = np.atleast_2d(np.asarray(beacons, dtype=float))
+    beacons = np.atleast_2d(as_real_array(beacons, "beacons"))
     return as_matrix(beacons, "beacons", (None, 2))
 
 

@@ -22,6 +22,8 @@ Everything random comes from ``numpy.random.default_rng(seed)``.
 from __future__ import annotations
 
 import dataclasses
+import os
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -231,10 +233,13 @@ def _config(config) -> EskfConfig:
     anything else is a ValueError naming ``config``."""
     if isinstance(config, EskfConfig):
         return config
+    if not isinstance(config, (str, os.PathLike, dict)):
+        raise ValueError(f"config must be an EskfConfig, a configuration name, a path to a YAML file or a "
+                         f"mapping, got {type(config).__name__}: {config!r:.60}")
     try:
         return load_config(config)
     except ValueError as exc:
-        if "config" in str(exc):
+        if re.search(r"(?<![\w.])config(?![\w])", str(exc)):
             raise
         raise ValueError(f"config: {exc}") from None
 

@@ -17,9 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kalman_course.chapters.consistency import _config
 from kalman_course.core.validation import as_scalar
 from kalman_course.filters import eskf
-from kalman_course.filters.eskf_config import load_config
 
 __all__ = ["bias_in_sigmas", "frozen_bias", "EarthRate", "earth_rate", "EARTH_RATE", "RAD_PER_S_TO_DEG_PER_H"]
 
@@ -78,7 +78,7 @@ def frozen_bias(config) -> tuple:
     P0 : numpy.ndarray, shape (15, 15)
         Diagonal prior with zero bias blocks.
     """
-    cfg = load_config(config) if isinstance(config, str) else config
+    cfg = _config(config)
     frozen = cfg.replace(bias_model="constant")
     P0 = eskf.initial_covariance(frozen)
     P0[9:, :] = 0.0

@@ -49,6 +49,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from kalman_course.chapters.consistency import _config
 from kalman_course.core import so3
 from kalman_course.core.linalg import symmetrise
 from kalman_course.core.imu import NavState, dead_reckon
@@ -59,7 +60,6 @@ from kalman_course.data import simulate_gnss
 from kalman_course.evaluation import metrics
 from kalman_course.evaluation.pose import POSE_INDEX
 from kalman_course.filters import eskf
-from kalman_course.filters.eskf_config import EskfConfig, load_config
 
 __all__ = [
     "MILLI_G", "roll_pitch_from_force", "rotation_from_euler", "euler_from_rotation",
@@ -554,7 +554,7 @@ def initial_covariance(rotation, sigma_position, sigma_velocity, sigma_tilt, sig
     sv = _sigma3(sigma_velocity, "sigma_velocity")
     st = as_scalar(sigma_tilt, "sigma_tilt", allow_zero=True)
     sh = as_scalar(sigma_heading, "sigma_heading", allow_zero=True)
-    cfg = config if isinstance(config, EskfConfig) else load_config(config)
+    cfg = _config(config)
     P = np.zeros((15, 15))
     P[eskf.IDX_P, eskf.IDX_P] = np.diag(sp ** 2)
     P[eskf.IDX_V, eskf.IDX_V] = np.diag(sv ** 2)
@@ -717,7 +717,7 @@ def initialise_from_gnss(imu, fixes, gravity, standstill, *, sigma=None, config=
         For bad arguments, or when no chord after the standstill is long and straight
         enough for the heading σ asked for (the message says the best σ reached).
     """
-    cfg = config if isinstance(config, EskfConfig) else load_config(config)
+    cfg = _config(config)
     t, f, w, _ = _imu_arrays(imu)
     obs = _fixes(fixes)
     g_vec = as_vector(gravity, "gravity", 3)
@@ -1057,7 +1057,7 @@ def compare_starts(excerpt, init: Initialisation, *, config="kitti_gnss", gnss=N
     tol_a = as_scalar(attitude_tolerance_deg, "attitude_tolerance_deg") * _DEG
     if gnss is None and lidar is None:
         gnss = excerpt.gnss.observations()
-    cfg = config if isinstance(config, EskfConfig) else load_config(config)
+    cfg = _config(config)
     truth_state = excerpt.truth.state_at(init.t0)
     a = run_errors(excerpt, init.state, init.P0, init.k0, config=cfg, gnss=gnss, lidar=lidar,
                    label="from the initialisation")
@@ -1141,7 +1141,7 @@ def p0_scaling(excerpt, init: Initialisation, scales=(0.01, 1.0, 100.0), *, conf
     thr_a = as_scalar(attitude_threshold_deg, "attitude_threshold_deg") * _DEG
     if gnss is None and lidar is None:
         gnss = excerpt.gnss.observations()
-    cfg = config if isinstance(config, EskfConfig) else load_config(config)
+    cfg = _config(config)
     runs = []
     for s in scales:
         e = run_errors(excerpt, init.state, s * init.P0, init.k0, config=cfg, gnss=gnss, lidar=lidar,
@@ -1220,7 +1220,7 @@ def p0_block_study(excerpt, standstill, variants, seeds, *, config="kitti_gnss",
     if not variants:
         raise ValueError("variants must name at least one P̂₀ scaling")
     last = as_scalar(last, "last")
-    cfg = config if isinstance(config, EskfConfig) else load_config(config)
+    cfg = _config(config)
     out = {label: np.empty(len(seeds)) for label in variants}
     for i, seed in enumerate(seeds):
         gnss = excerpt.gnss if seed is None else simulate_gnss(excerpt.gnss, seed, excerpt.gnss.sigma)

@@ -207,6 +207,29 @@ class SteadyState:
     steps: int
 
 
+def _check_rows_of_G(R, name: str, G: np.ndarray) -> None:
+    """Raise a ValueError naming ``name`` and G unless the covariance R is (m, m) for G's m rows."""
+    arr = as_covariance(R, name)
+    m = G.shape[0]
+    if arr.shape != (m, m):
+        raise ValueError(f"{name} must have shape ({m}, {m}), one row and column per row of G {G.shape}, "
+                         f"got {arr.shape}")
+
+
+def _seed_list(seeds) -> np.ndarray:
+    """``seeds`` (a non-empty sequence of non-negative ints) as an int array; else a ValueError naming it."""
+    expected = "a non-empty sequence of non-negative integers"
+    if isinstance(seeds, (str, bytes)) or not np.iterable(seeds):
+        raise ValueError(f"seeds must be {expected}, got {seeds!r:.60}")
+    try:
+        out = np.array([as_seed(s) for s in seeds], dtype=int)
+    except ValueError:
+        raise ValueError(f"seeds must be {expected}, got {seeds!r:.60}") from None
+    if out.size == 0:
+        raise ValueError("seeds must name at least one seed")
+    return out
+
+
 def steady_state(F, Q, G, R, *, B=None, P0=None, rtol=1e-12, max_steps=100_000) -> SteadyState:
     """Iterate ``kf_update`` and ``kf_predict`` until the prior covariance stops changing.
 
@@ -238,7 +261,9 @@ def steady_state(F, Q, G, R, *, B=None, P0=None, rtol=1e-12, max_steps=100_000) 
     """
     F = as_matrix(F, "F")
     n = F.shape[0]
+    F = as_matrix(F, "F", (n, n))
     G = as_matrix(G, "G", (None, n))
+    _check_rows_of_G(R, "R", G)
     P = np.eye(n) if P0 is None else as_covariance(P0, "P0", n, psd=True)
     rtol = as_scalar(rtol, "rtol")
     if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 1:
@@ -637,14 +662,13 @@ def information_trial(mu, P_check, G, R, *, seeds, n_runs=500, bias=None, R_true
     if G.shape[1] != n:
         raise ValueError(f"G must have {n} columns, got shape {G.shape}")
     m = G.shape[0]
+    _check_rows_of_G(R, "R", G)
     R = as_covariance(R, "R", m)
     R_true = R if R_true is None else as_covariance(R_true, "R_true", m)
     bias = np.zeros(m) if bias is None else as_vector(bias, "bias", m)
     if isinstance(n_runs, bool) or not isinstance(n_runs, (int, np.integer)) or n_runs < 1:
         raise ValueError(f"n_runs must be an integer >= 1, got {n_runs!r}")
-    seeds = np.array([as_seed(s) for s in seeds], dtype=int)
-    if seeds.size == 0:
-        raise ValueError("seeds must name at least one seed")
+    seeds = _seed_list(seeds)
 
     # the update is the same for every run: x̂ = mu + K (y − G mu), P̂ = P̌ − K G P̌
     K = kf_gain(P_check, G, innovation_covariance(P_check, G, R))

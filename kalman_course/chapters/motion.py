@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kalman_course import symbolic
-from kalman_course.core.validation import as_scalar, as_vector
+from kalman_course.core.validation import as_int, as_real_array, as_scalar, as_seed, as_vector
 from kalman_course.data import load_kitti
 from kalman_course.evaluation.metrics import position_rmse
 
@@ -235,13 +235,12 @@ def noise_inside_step(model: str, x, T, w, n_nodes: int = 24) -> np.ndarray:
     n = len(symbolic.motion_state_names(model))
     x = as_vector(x, "x", n)
     T = as_scalar(T, "T", allow_zero=True)
-    w_arr = np.asarray(w, dtype=float)
+    w_arr = as_real_array(w, "w")
     single = w_arr.ndim == 1
     w_arr = np.atleast_2d(w_arr)
     if w_arr.ndim != 2 or w_arr.shape[1] != 2 or not np.isfinite(w_arr).all():
         raise ValueError(f"w must have shape (2,) or (N, 2) and be finite, got shape {np.shape(w)}")
-    if int(n_nodes) != n_nodes or n_nodes < 2:
-        raise ValueError(f"n_nodes must be an integer >= 2, got {n_nodes!r}")
+    n_nodes = as_int(n_nodes, "n_nodes", minimum=2)
     px, py, v, psi, om = x[:5]
     a = x[5] if model == "ctra" else 0.0
     nodes, weights = np.polynomial.legendre.leggauss(int(n_nodes))
@@ -331,7 +330,13 @@ def noise_covariance_check(model: str, x, T, sigmas, seeds=range(5), n_samples: 
     sigmas = as_vector(sigmas, "sigmas", 2)
     if (sigmas <= 0).any():
         raise ValueError(f"sigmas must be positive, got {sigmas}")
-    seeds = [int(s) for s in seeds]
+    n_samples = as_int(n_samples, "n_samples", minimum=2)
+    if isinstance(seeds, (str, bytes)) or not np.iterable(seeds):
+        raise ValueError(f"seeds must be an iterable of non-negative integers, got {seeds!r:.60}")
+    try:
+        seeds = [as_seed(s) for s in seeds]
+    except ValueError:
+        raise ValueError(f"seeds must be an iterable of non-negative integers, got {seeds!r:.60}") from None
     if not seeds:
         raise ValueError("seeds must hold at least one seed")
     Q_pos = symbolic.motion_process_noise(model, x, T, sigmas)[:2, :2]

@@ -25,7 +25,7 @@ import numpy as np
 
 from kalman_course.core import so3
 from kalman_course.core.numdiff import numerical_jacobian
-from kalman_course.core.validation import as_matrix, as_rotation, as_rows, as_seed, as_vector
+from kalman_course.core.validation import as_matrix, as_rotation, as_rotations, as_rows, as_seed, as_vector
 from kalman_course.data.observation_errors import ObservationErrors
 from kalman_course.filters.eskf_relative import relative_motion, relative_pose_residual
 
@@ -166,11 +166,8 @@ def segment_errors(position, rotation, true_position, true_rotation, first, last
     p = as_matrix(position, "position", ("K", 3))
     K = p.shape[0]
     p_true = as_matrix(true_position, "true_position", (K, 3))
-    R = np.asarray(rotation, dtype=float)
-    R_true = np.asarray(true_rotation, dtype=float)
-    for name, value in (("rotation", R), ("true_rotation", R_true)):
-        if value.shape != (K, 3, 3):
-            raise ValueError(f"{name} must have shape ({K}, 3, 3), got {value.shape}")
+    R = as_rotations(rotation, "rotation", K)
+    R_true = as_rotations(true_rotation, "true_rotation", K)
     first = np.asarray(first)
     last = np.asarray(last)
     length = as_vector(length, "length")

@@ -92,7 +92,8 @@ import numpy as np
 from kalman_course.core.observations import PoseObservations
 from kalman_course.core import so3
 from kalman_course.core.imu import NavState, dead_reckon
-from kalman_course.core.validation import as_real_array, as_scalar, as_seed, as_vector
+from kalman_course.core.validation import (as_covariance, as_real_array, as_rotation, as_rotations, as_rows,
+                                           as_scalar, as_seed, as_vector)
 from kalman_course.data.kitti import load_kitti
 from kalman_course.data.mems_imu import reference_imu
 from kalman_course.evaluation.drift import DriftResult, drift
@@ -222,14 +223,12 @@ def anchor(position, rotation, true_position, true_rotation, frame: int):
     position : numpy.ndarray, shape (K, 3)
     rotation : numpy.ndarray, shape (K, 3, 3)
     """
-    p = _finite(position, "position")
-    R = _finite(rotation, "rotation")
-    if p.ndim != 2 or p.shape[1] != 3 or R.shape != (p.shape[0], 3, 3):
-        raise ValueError(f"position must be (K, 3) and rotation (K, 3, 3), got {p.shape} and {R.shape}")
+    p = as_rows(position, "position", (3,), count="K")
+    R = as_rotations(rotation, "rotation", len(p))
     if isinstance(frame, (bool, np.bool_)) or not isinstance(frame, (int, np.integer)) or not 0 <= frame < len(p):
         raise ValueError(f"frame must be an index into the track (0 … {len(p) - 1}), got {frame!r}")
     p_true = as_vector(true_position, "true_position", 3)
-    C = np.asarray(true_rotation, dtype=float) @ R[frame].T          # the correcting rotation
+    C = as_rotation(true_rotation, "true_rotation") @ R[frame].T          # the correcting rotation
     return p_true + (p - p[frame]) @ C.T, C @ R
 
 
@@ -807,11 +806,10 @@ def white_increments(true_position, true_rotation, t, std, seed: int) -> PoseObs
     PoseObservations
     """
     p_true = _finite(true_position, "true_position")
-    R_true = _finite(true_rotation, "true_rotation")
     t = as_vector(t, "t")
-    if p_true.shape != (len(t), 3) or R_true.shape != (len(t), 3, 3) or len(t) < 2:
-        raise ValueError(f"true_position must be (K, 3) and true_rotation (K, 3, 3) with K = len(t) ≥ 2, "
-                         f"got {p_true.shape}, {R_true.shape} and {len(t)} times")
+    if p_true.shape != (len(t), 3) or len(t) < 2:
+        raise ValueError(f"true_position must be (K, 3) with K = len(t) ≥ 2, got {p_true.shape} and {len(t)} times")
+    R_true = as_rotations(true_rotation, "true_rotation", len(t))
     sig = np.array(_stds(std, "std", (2, 6)))
     sig = np.repeat(sig, 3) if sig.size == 2 else sig
     noise = np.random.default_rng(as_seed(seed)).standard_normal((len(t) - 1, 6)) * sig
@@ -904,9 +902,9 @@ def yaw_error(rotation, true_rotation) -> np.ndarray:
     rotation, true_rotation : array_like, shape (K, 3, 3)
         Estimated and true attitudes R_nb.
     """
-    R = _finite(rotation, "rotation")
-    R_true = _finite(true_rotation, "true_rotation")
-    if R.ndim != 3 or R.shape[1:] != (3, 3) or R_true.shape != R.shape:
+    R = as_rotations(rotation, "rotation")
+    R_true = as_rotations(true_rotation, "true_rotation")
+    if R_true.shape != R.shape:
         raise ValueError(f"rotation and true_rotation must both be (K, 3, 3), got {R.shape} and {R_true.shape}")
     dtheta = so3.log(np.swapaxes(R_true, 1, 2) @ R)
     return np.einsum("ki,ki->k", R[:, 2, :], dtheta)
@@ -922,10 +920,10 @@ def yaw_variance(rotation, P) -> np.ndarray:
     P : array_like, shape (K, 15, 15)
         Covariances of the ESKF error state (attitude block rows 6:9).
     """
-    R = _finite(rotation, "rotation")
-    P = _finite(P, "P")
-    if R.ndim != 3 or R.shape[1:] != (3, 3) or P.shape != (len(R), 15, 15):
-        raise ValueError(f"rotation must be (K, 3, 3) and P (K, 15, 15), got {R.shape} and {P.shape}")
+    R = as_rotations(rotation, "rotation")
+    P = as_rows(P, "P", (15, 15), len(R), count="K")
+    for k in range(len(P)):
+        as_covariance(P[k], f"P[{k}]", 15, psd=True)
     up = R[:, 2, :]
     return np.einsum("ki,kij,kj->k", up, P[:, 6:9, 6:9], up)
 

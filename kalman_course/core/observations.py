@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kalman_course.core.validation import ROTATION_TOL, as_rows, check_rotations
+from kalman_course.core.validation import ROTATION_TOL, as_increasing, as_rows, check_rotations
 
 __all__ = ["PositionObservations", "PoseObservations"]
 
@@ -41,13 +41,7 @@ def _readonly(arr: np.ndarray) -> np.ndarray:
 
 def _as_times(t) -> np.ndarray:
     """Return ``t`` as a finite, strictly increasing float64 vector (K,)."""
-    arr = as_rows(t, "t", count="K")
-    step = np.diff(arr)
-    if (step <= 0.0).any():
-        k = int(np.argmax(step <= 0.0)) + 1
-        raise ValueError(f"t must be strictly increasing: t[{k}] = {arr[k]:g} <= "
-                         f"t[{k - 1}] = {arr[k - 1]:g}")
-    return arr
+    return as_increasing(t, "t", count="K")
 
 
 @dataclass(frozen=True, eq=False, repr=False)

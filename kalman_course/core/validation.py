@@ -166,6 +166,21 @@ def as_rows(value, name: str, tail: tuple[int, ...] = (), n: int | None = None, 
     return arr
 
 
+def as_increasing(value, name: str, *, count: str = "N") -> np.ndarray:
+    """Return ``value`` as a finite, strictly increasing 1-D float array (times, for example).
+
+    Raises ValueError naming ``name`` as :func:`as_rows` does, and naming the first sample
+    that does not increase (``t must be strictly increasing: t[3] = 1 <= t[2] = 2``).
+    """
+    arr = as_rows(value, name, count=count)
+    step = np.diff(arr)
+    if (step <= 0.0).any():
+        k = int(np.argmax(step <= 0.0)) + 1
+        raise ValueError(f"{name} must be strictly increasing: {name}[{k}] = {arr[k]:g} <= "
+                         f"{name}[{k - 1}] = {arr[k - 1]:g}")
+    return arr
+
+
 def as_real_array(value, name: str, *, allow_empty: bool = False) -> np.ndarray:
     """Return ``value`` as a non-empty float array of any shape; NaN and inf are kept.
 

@@ -32,6 +32,9 @@ def plot_belief_sequence(beliefs, *, titles=None, true_cells=None, doors=None, f
     import matplotlib.pyplot as plt
     from matplotlib.ticker import MaxNLocator
 
+    if isinstance(beliefs, (str, bytes)) or not np.iterable(beliefs):
+        raise ValueError(f"beliefs must be a sequence of beliefs (1-D arrays of cell weights), "
+                         f"got {type(beliefs).__name__}: {beliefs!r:.60}")
     beliefs = [_vector(b, f"beliefs[{i}]") for i, b in enumerate(beliefs)]
     if not beliefs:
         raise ValueError("beliefs must contain at least one belief")

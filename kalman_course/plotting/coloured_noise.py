@@ -191,7 +191,8 @@ def plot_error_draws(t, draws, *, sigma, axis: int = 0, title: str = "", figsize
     for label, draw in draws.items():
         error = np.asarray(draw.error, dtype=float) if hasattr(draw, "error") else None
         if error is None or error.shape != (len(t), 6):
-            raise ValueError(f"draws[{label!r}] must be an error draw with error of shape ({len(t)}, 6)")
+            raise ValueError(f"draws[{label!r}] must be an error draw with error of shape ({len(t)}, 6), "
+                             f"one row per time in t")
         jumps, outliers = getattr(draw, "jumps", None), getattr(draw, "outliers", None)
         rows[label] = (error[:, axis], None if jumps is None else np.asarray(jumps, dtype=bool),
                        None if outliers is None else np.asarray(outliers, dtype=bool))

@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from kalman_course.core.validation import as_scalar
-from kalman_course.plotting.vocabulary import (COLORS, CURVE_COLORS, _sigma, _vector, plot_curves, plot_error_with_band,
-                                               plot_sigma_band, plot_track, shade_spans)
+from kalman_course.core.validation import as_rows, as_scalar
+from kalman_course.plotting.vocabulary import (COLORS, CURVE_COLORS, _points, _sigma, _times, _vector, plot_curves,
+                                               plot_error_with_band, plot_sigma_band, plot_track, shade_spans)
 
 __all__ = ["plot_track_with_zoom", "plot_pose_errors", "plot_bias_estimates", "plot_bias_sigmas",
            "plot_outage_error", "plot_error_norms"]
@@ -24,16 +24,8 @@ _RAD_PER_S_TO_DEG_PER_H = np.rad2deg(1.0) * 3600.0
 
 
 def _rows(value, name: str, n: int, columns: int) -> np.ndarray:
-    """``value`` as a finite float array of shape (n, >= columns)."""
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a numeric array of shape ({n}, {columns})") from None
-    if arr.ndim != 2 or arr.shape[0] != n or arr.shape[1] < columns:
-        raise ValueError(f"{name} must have shape ({n}, {columns}) (one row per time in t), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite")
-    return arr
+    """``value`` as a finite float array of shape (n, columns): one row per time in t."""
+    return as_rows(value, name, (columns,), n)
 
 
 def plot_track_with_zoom(truth_xy, estimate_xy, measured_xy=None, *, zoom, title="", zoom_title="zoom",
@@ -71,6 +63,9 @@ def plot_track_with_zoom(truth_xy, estimate_xy, measured_xy=None, *, zoom, title
         raise ValueError(f"zoom must be ((east_min, east_max), (north_min, north_max)), got {zoom!r}") from None
     if not (x0 < x1 and y0 < y1):
         raise ValueError(f"zoom limits must increase, got {zoom!r}")
+    truth_xy, estimate_xy = _points(truth_xy, "truth_xy"), _points(estimate_xy, "estimate_xy")
+    if measured_xy is not None:
+        measured_xy = _points(measured_xy, "measured_xy", allow_nan=True)
     fig, axes = plt.subplots(1, 2, figsize=figsize)
     for ax in axes:
         plot_track(ax, truth_xy, estimate_xy, measured_xy, estimate_label=estimate_label,
@@ -108,11 +103,12 @@ def plot_pose_errors(t, position_error, attitude_error, std, *, n_sigma=3, figsi
     """
     import matplotlib.pyplot as plt
 
-    t = _vector(t, "t")
+    t = _times(t, "t")
     n = t.shape[0]
     position_error = _rows(position_error, "position_error", n, 3)
     attitude_error = _rows(attitude_error, "attitude_error", n, 3)
-    std = _rows(std, "std", n, 9)
+    std = _rows(std, "std", n, 15)
+    n_sigma = as_scalar(n_sigma, "n_sigma")
     fig, axes = plt.subplots(2, 3, figsize=figsize, sharex=True)
     for i, axis in enumerate(_AXES):
         plot_error_with_band(axes[0, i], t, position_error[:, i], std[:, i], n_sigma)
@@ -154,15 +150,17 @@ def plot_bias_estimates(t, accel_bias, gyro_bias, *, accel_sigma=None, gyro_sigm
     """
     import matplotlib.pyplot as plt
 
-    t = _vector(t, "t")
+    t = _times(t, "t")
     n = t.shape[0]
     if (accel_sigma is None) != (gyro_sigma is None):
         raise ValueError("accel_sigma and gyro_sigma must be given together (or neither)")
     rows = [("b_a", "m/s²", _rows(accel_bias, "accel_bias", n, 3), 1.0, accel_sigma, "accel_sigma"),
             ("b_ω", "deg/h", _rows(gyro_bias, "gyro_bias", n, 3), _RAD_PER_S_TO_DEG_PER_H, gyro_sigma, "gyro_sigma")]
+    rows = [(symbol, unit, values, scale, None if sigma is None else _rows(sigma, sigma_name, n, 3))
+            for symbol, unit, values, scale, sigma, sigma_name in rows]
+    n_sigma = as_scalar(n_sigma, "n_sigma")
     fig, axes = plt.subplots(2, 3, figsize=figsize, sharex=True)
-    for row, (symbol, unit, values, scale, sigma, sigma_name) in zip(axes, rows):
-        sigma = None if sigma is None else _rows(sigma, sigma_name, n, 3)
+    for row, (symbol, unit, values, scale, sigma) in zip(axes, rows):
         for i, (ax, axis) in enumerate(zip(row, _AXES)):
             if sigma is not None:
                 plot_sigma_band(ax, t, values[:, i] * scale, sigma[:, i] * scale, n_sigma)
@@ -258,15 +256,15 @@ def plot_outage_error(t, error, sigma, outage, *, n_sigma=3, title="", label="ho
         raise ValueError(f"outage must be (start, end) in s, got {outage!r}") from None
     if not (np.isfinite(start) and np.isfinite(end) and start <= end):
         raise ValueError(f"outage must be finite with start <= end, got {outage!r}")
-    t = _vector(t, "t")
+    t = _times(t, "t")
     error = _vector(error, "error", n=t.shape[0])
     if np.any(error < 0):
         raise ValueError("error must be a norm (not negative); draw a signed error with plot_error_with_band")
+    sigma = _sigma(sigma, "sigma", t.shape[0])
+    n_sigma = as_scalar(n_sigma, "n_sigma")
     fig, ax = plt.subplots(figsize=figsize)
     shade_spans(ax, [(start, end)], label=outage_label, color="0.93")
     # a band from 0 to n·σ: centred at n·σ/2 with half-width n·σ/2
-    sigma = _sigma(sigma, "sigma", t.shape[0])
-    n_sigma = as_scalar(n_sigma, "n_sigma")
     half = 0.5 * sigma
     plot_sigma_band(ax, t, n_sigma * half, half, n_sigma, label=f"0 to {n_sigma:g}σ")
     ax.plot(t, error, color=COLORS["estimate"], lw=1.0, label=label)

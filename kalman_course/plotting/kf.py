@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from kalman_course.plotting.vocabulary import (_vector, plot_consistency, plot_covariance_ellipse, plot_error_with_band,
-                                               plot_estimate, plot_measurements, plot_sigma_band, plot_truth)
+from kalman_course.plotting.vocabulary import (_times, _vector, plot_consistency, plot_covariance_ellipse,
+                                               plot_error_with_band, plot_estimate, plot_measurements, plot_sigma_band,
+                                               plot_truth)
 
 __all__ = ["plot_kf_1d", "plot_kf_2d", "plot_innovations", "plot_tuning_dashboard"]
 
@@ -191,7 +192,7 @@ def plot_innovations(t, cases, *, n_sigma=3, figsize=(12, 5)):
 
     from kalman_course.plotting.vocabulary import COLORS, CURVE_COLORS
 
-    t = _vector(t, "t")
+    t = _times(t, "t")
     if not hasattr(cases, "items") or len(cases) == 0:
         raise ValueError("cases must be a non-empty mapping of label -> (innovation, S, whiteness)")
     fig = plt.figure(figsize=figsize)

@@ -22,7 +22,8 @@ import types
 import numpy as np
 
 from kalman_course.core.linalg import symmetrise
-from kalman_course.core.validation import as_covariance, as_matrix, as_real_array, as_scalar, as_vector
+from kalman_course.core.validation import (as_covariance, as_flag, as_increasing, as_matrix, as_real_array, as_rows,
+                                           as_scalar, as_vector)
 
 __all__ = [
     "COLORS",
@@ -78,6 +79,21 @@ def _vector(value, name: str, *, allow_nan: bool = False, n: int | None = None) 
     return arr
 
 
+def _times(value, name: str = "t") -> np.ndarray:
+    """Finite, strictly increasing sample times (N,) (1-D: a column is not flattened)."""
+    return as_increasing(value, name)
+
+
+def _axes(ax, name: str = "ax"):
+    """``ax`` itself if it is a Matplotlib Axes; anything else is a ValueError naming ``name``."""
+    from matplotlib.axes import Axes
+
+    if not isinstance(ax, Axes):
+        raise ValueError(f"{name} must be a Matplotlib Axes (for example fig.add_subplot() or plt.gca()), "
+                         f"got {type(ax).__name__}: {ax!r:.60}")
+    return ax
+
+
 def _sigma(value, name: str, n: int) -> np.ndarray:
     arr = as_real_array(value, name)
     if arr.ndim == 0:
@@ -126,6 +142,7 @@ def plot_truth(ax, t, x, *, label="truth", **kwargs):
     -------
     matplotlib.lines.Line2D
     """
+    _axes(ax)
     t = _vector(t, "t")
     x = _vector(x, "x", n=t.shape[0])
     (line,) = ax.plot(t, x, **_with_defaults(kwargs, color=COLORS["truth"], lw=1.5, label=label))
@@ -152,6 +169,7 @@ def plot_measurements(ax, t, y, *, label="measurements", **kwargs):
     -------
     matplotlib.lines.Line2D
     """
+    _axes(ax)
     t = _vector(t, "t", allow_nan=True)
     y = _vector(y, "y", allow_nan=True, n=t.shape[0])
     (line,) = ax.plot(t, y, **_with_defaults(kwargs, color=COLORS["measurement"], marker=".",
@@ -179,6 +197,7 @@ def plot_estimate(ax, t, x, *, label="estimate", **kwargs):
     -------
     matplotlib.lines.Line2D
     """
+    _axes(ax)
     t = _vector(t, "t")
     x = _vector(x, "x", n=t.shape[0])
     (line,) = ax.plot(t, x, **_with_defaults(kwargs, color=COLORS["estimate"], lw=1.5, label=label))
@@ -209,6 +228,7 @@ def plot_sigma_band(ax, t, center, sigma, n_sigma=3, *, label=None, **kwargs):
     -------
     matplotlib.collections.PolyCollection
     """
+    _axes(ax)
     t = _vector(t, "t")
     n = t.shape[0]
     c = as_real_array(center, "center")
@@ -250,6 +270,7 @@ def plot_error_with_band(ax, t, error, sigma, n_sigma=3, *, label="error", band_
     (matplotlib.lines.Line2D, matplotlib.collections.PolyCollection)
         The error line and the band.
     """
+    _axes(ax)
     t = _vector(t, "t")
     error = _vector(error, "error", n=t.shape[0])
     band = plot_sigma_band(ax, t, 0.0, sigma, n_sigma, label=band_label)
@@ -308,6 +329,7 @@ def plot_covariance_ellipse(ax, mean, cov, n_sigma=3, *, label=None, **kwargs):
     """
     from matplotlib.patches import Ellipse
 
+    _axes(ax)
     mean = _vector(mean, "mean", n=2)
     width, height, angle = covariance_ellipse_axes(cov, n_sigma)
     style = _with_defaults(kwargs, fill=False, lw=1.5, label=label)
@@ -338,6 +360,7 @@ def plot_belief(ax, belief, *, positions=None, label=None, **kwargs):
     -------
     matplotlib.container.BarContainer
     """
+    _axes(ax)
     belief = _vector(belief, "belief")
     if belief.size == 0:
         raise ValueError("belief must have at least one cell")
@@ -365,11 +388,8 @@ def plot_samples(ax, points, *, label="samples", **kwargs):
     -------
     matplotlib.collections.PathCollection
     """
-    pts = np.asarray(points, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] != 2:
-        raise ValueError(f"points must have shape (N, 2), got {pts.shape}")
-    if not np.all(np.isfinite(pts)):
-        raise ValueError("points must be finite")
+    _axes(ax)
+    pts = as_rows(points, "points", (2,))
     return ax.scatter(pts[:, 0], pts[:, 1], **_with_defaults(kwargs, s=4, color=COLORS["samples"],
                                                              label=label))
 
@@ -397,6 +417,7 @@ def plot_consistency(ax, t, values, lo, hi, *, label="NEES", **kwargs):
     (matplotlib.lines.Line2D, matplotlib.collections.PolyCollection)
         The statistic and the shaded interval.
     """
+    _axes(ax)
     t = _vector(t, "t")
     values = _vector(values, "values", allow_nan=True, n=t.shape[0])
     lo, hi = _bounds(lo, hi)
@@ -441,10 +462,12 @@ def plot_consistency_curves(ax, t, curves, lo, hi, *, log=True, band_label=None,
     (list of matplotlib.lines.Line2D, matplotlib.collections.PolyCollection)
         The curves in the order of ``curves``, and the interval.
     """
+    _axes(ax)
     t = _vector(t, "t")
     if not hasattr(curves, "items") or len(curves) == 0:
         raise ValueError("curves must be a non-empty mapping of label -> values")
     lo, hi = _bounds(lo, hi)
+    log = as_flag(log, "log")
     colors = CURVE_COLORS if colors is None else tuple(colors)
     if len(colors) < len(curves):
         raise ValueError(f"colors must give one colour per curve ({len(curves)}), got {len(colors)}")
@@ -489,6 +512,7 @@ def plot_track(ax, truth_xy, estimate_xy, measured_xy=None, *, estimate_label="e
     -----
     Sets an equal aspect ratio, so that a circle looks like one.
     """
+    _axes(ax)
     truth_xy = _points(truth_xy, "truth_xy")
     estimate_xy = _points(estimate_xy, "estimate_xy")
     lines = [plot_truth(ax, truth_xy[:, 0], truth_xy[:, 1])]
@@ -519,7 +543,11 @@ def shade_spans(ax, spans, *, label=None, **kwargs):
     list of matplotlib.patches.Polygon
         One per span.
     """
-    spans = np.asarray(spans, dtype=float).reshape(-1, 2) if np.size(spans) else np.empty((0, 2))
+    _axes(ax)
+    spans = as_real_array(spans, "spans", allow_empty=True)
+    if spans.size % 2:
+        raise ValueError(f"spans must be (start, end) pairs, an array of shape (K, 2), got shape {spans.shape}")
+    spans = spans.reshape(-1, 2) if spans.size else np.empty((0, 2))
     if not np.all(np.isfinite(spans)):
         raise ValueError("spans must be finite")
     if np.any(spans[:, 1] < spans[:, 0]):
@@ -544,7 +572,7 @@ def flag_spans(t, flags) -> np.ndarray:
         (time of the first, time of the last flagged sample) of each run of consecutive
         flagged samples, in order; K = 0 when nothing is flagged.
     """
-    t = _vector(t, "t")
+    t = _times(t, "t")
     flags = np.asarray(flags)
     if flags.shape != t.shape or flags.dtype != bool:
         raise ValueError(f"flags must be a boolean array of shape {t.shape} (as t), got "
@@ -576,6 +604,7 @@ def plot_curves(ax, curves, *, colors=None, linestyles=None, lw=1.0):
     list of matplotlib.lines.Line2D
         In the order of ``curves``.
     """
+    _axes(ax)
     if not hasattr(curves, "items") or len(curves) == 0:
         raise ValueError("curves must be a non-empty mapping of label -> (t, values)")
     colors = CURVE_COLORS if colors is None else tuple(colors)

@@ -251,7 +251,7 @@ def motion_state_names(model: str) -> tuple[str, ...]:
     names = {"cv": ("p_x", "p_y", "v_x", "v_y"), "ca": ("p_x", "p_y", "v_x", "v_y", "a_x", "a_y"),
              "ctrv": ("p_x", "p_y", "v", "psi", "omega"),
              "ctra": ("p_x", "p_y", "v", "psi", "omega", "a")}
-    if model not in names:
+    if not isinstance(model, str) or model not in names:
         raise ValueError(f"model must be one of {MOTION_MODELS}, got {model!r}")
     return names[model]
 

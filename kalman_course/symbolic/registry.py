@@ -64,12 +64,13 @@ def derivation(name: str) -> Derivation:
 
     Raises
     ------
-    KeyError
-        If there is no such derivation; the message lists the known names.
+    ValueError
+        If ``name`` is not a string or there is no such derivation; the message lists the
+        known names.
     """
     known = builders()
     if not isinstance(name, str):
         raise ValueError(f"name must be the name (str) of a derivation, one of {list(known)}; got {name!r}")
     if name not in known:
-        raise KeyError(f"unknown derivation {name!r}; known: {list(known)}")
+        raise ValueError(f"name: unknown derivation {name!r}; known: {list(known)}")
     return known[name]()
