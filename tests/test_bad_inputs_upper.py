@@ -17,6 +17,7 @@ import importlib
 import inspect
 import math
 import pkgutil
+import re
 from types import SimpleNamespace
 
 import matplotlib
@@ -33,9 +34,9 @@ import kalman_course.symbolic  # noqa: E402
 from test_bad_inputs_modules import ALL_KINDS  # noqa: E402
 from test_validation import assert_names  # noqa: E402
 
-from kalman_course.chapters import (beacons, coloured_noise, consistency, conventions, corridor,  # noqa: E402
-                                    eskf_bias, initialisation, intuition, lidar_radar, mechanisation,
-                                    motion, real_sensors, visual_odometry, wrong_models)
+from kalman_course.chapters import (beacons, bias_models, coloured_noise, consistency, conventions,  # noqa: E402
+                                    corridor, eskf_bias, gnss, initialisation, intuition, kf_tuning, lidar_radar,
+                                    mechanisation, motion, real_sensors, visual_odometry, wrong_models)
 from kalman_course.data.observation_errors import WhiteErrors  # noqa: E402
 from kalman_course.evaluation.consistency import innovation_whiteness  # noqa: E402
 from kalman_course.plotting import (bayes as pbayes, coloured_noise as pcoloured, eskf as peskf,  # noqa: E402
@@ -694,3 +695,64 @@ def test_bad_argument_is_a_value_error_naming_it(fn, good, arg, bad, names):
 def test_the_good_arguments_are_good(fn, good):
     with np.errstate(all="raise", under="ignore"):
         fn(**good)
+
+
+# ---------------------------------------------------------------------------------------
+# functions whose good call is a whole run: each bad argument is refused before the work
+# ---------------------------------------------------------------------------------------
+
+def _cv_runs():
+    from kalman_course.data import cv_target
+    return [cv_target(30, 0.1, 1.0, 0.5, seed=s, dim=1) for s in (0, 1)]
+
+
+def corridor_model():
+    return wrong_models.CorridorModel((True, False, False, True, False), 0.9, 0.1, ((1, 0.8), (2, 0.2)))
+
+
+_RUN = _cv_runs()[0]
+# x0, P0, F, G, Q, R of innovation_tuning, for the 1-D CV runs above
+CV_MODEL = (np.zeros(2), np.eye(2) * 10.0, _RUN.F, _RUN.H, _RUN.Q, _RUN.R)
+
+
+HEAVY = [
+    (lambda: beacons.run_beacon_filter(None), "scenario"),
+    (lambda: beacons.run_beacon_filter(beacons.kitti_beacons("turns", 0), max_iter=0), "max_iter"),
+    (lambda: beacons.run_beacon_filter(beacons.kitti_beacons("turns", 0), max_iter=2.5), "max_iter"),
+    (lambda: beacons.run_beacon_filter(beacons.kitti_beacons("turns", 0), tol="1e-6"), "tol"),
+    (lambda: beacons.run_beacon_filter(beacons.kitti_beacons("turns", 0), tol=-1.0), "tol"),
+    (lambda: beacons.runs_over_seeds([0, -1]), r"seeds\[1\]"),
+    (lambda: beacons.runs_over_seeds(None), "seeds"),
+    (lambda: beacons.runs_over_seeds([True]), r"seeds\[0\]"),
+    (lambda: lidar_radar.fuse_lidar_radar("scenario"), "scenario"),
+    (lambda: lidar_radar.fuse_lidar_radar(lidar_radar.ctrv_lidar_radar(seed=0), max_iter=None), "max_iter"),
+    (lambda: lidar_radar.position_nees(None), "result"),
+    (lambda: lidar_radar.kitti_acceleration(3), "excerpt"),
+    (lambda: wrong_models.corridor_trials(None, None, [0]), "filter_model"),
+    (lambda: wrong_models.corridor_trials(corridor_model(), "truth", [0]), "truth"),
+    (lambda: wrong_models.corridor_trials(corridor_model(), corridor_model(), [1.5]), r"seeds\[0\]"),
+    (lambda: gnss.truth_at("turns", [1.0]), r"t must lie inside the truth of 'turns'"),
+    (lambda: gnss.truth_at("turns", "abc"), "t"),
+    (lambda: kf_tuning.innovation_tuning(None, *CV_MODEL), "runs"),
+    (lambda: kf_tuning.innovation_tuning(["abc"], *CV_MODEL), r"runs\[0\]"),
+    (lambda: kf_tuning.innovation_tuning(_cv_runs(), *CV_MODEL, skip=True), "skip"),
+    (lambda: kf_tuning.innovation_tuning(_cv_runs(), *CV_MODEL[:5], "abc"), "R"),
+    (lambda: kf_tuning.innovation_tuning(_cv_runs(), *CV_MODEL[:4], np.eye(2) + 0j, CV_MODEL[5]), "Q"),
+    (lambda: kf_tuning.sigma_for_unit_nis(_cv_runs(), *CV_MODEL[:5], lo="0.1"), "lo"),
+    (lambda: kf_tuning.sigma_for_unit_nis(_cv_runs(), *CV_MODEL[:5], hi=np.inf), "hi"),
+    (lambda: kf_tuning.sigma_for_unit_nis(_cv_runs(), *CV_MODEL[:5], iterations=0), "iterations"),
+    (lambda: motion.predicted_paths("turns", np.nan, 3.0), "t0"),
+    (lambda: motion.predicted_paths("turns", 320.0, 3.0, n=2.0), "n"),
+    (lambda: motion.predicted_paths("turns", 320.0, 3.0, causal="False"), "causal"),
+    (lambda: motion.kitti_model_states("turns", "cv", causal=1), "causal"),
+    (lambda: bias_models.earth_rotation("49"), "latitude_deg"),
+    (lambda: bias_models.earth_rotation(True), "latitude_deg"),
+]
+
+
+@pytest.mark.parametrize("call, name", HEAVY, ids=[f"heavy-{i}" for i in range(len(HEAVY))])
+def test_a_run_refuses_a_bad_argument_by_name(call, name):
+    with pytest.raises(Exception) as info:
+        call()
+    assert type(info.value) is ValueError, f"{type(info.value).__name__}: {info.value}"
+    assert re.search(name, str(info.value)), str(info.value)

@@ -24,7 +24,8 @@ import numpy as np
 
 from kalman_course import symbolic
 from kalman_course.core.angles import wrap_angle
-from kalman_course.core.validation import as_flag, as_matrix, as_real_array, as_scalar, as_seed, as_vector
+from kalman_course.core.validation import (as_flag, as_int, as_matrix, as_real_array, as_scalar, as_seed, as_seeds,
+                                           as_vector)
 from kalman_course.data import load_kitti
 from kalman_course.evaluation.metrics import nees, position_rmse
 from kalman_course.filters.ekf import ekf_predict, ekf_update, iekf_update
@@ -250,8 +251,12 @@ def run_beacon_filter(scenario: BeaconScenario, *, iterated=False, sigma_a=2.0, 
     -------
     BeaconResult
     """
+    if not isinstance(scenario, BeaconScenario):
+        raise ValueError(f"scenario must be a BeaconScenario (from kitti_beacons), got {type(scenario).__name__}")
     sigma_a = as_scalar(sigma_a, "sigma_a", allow_zero=True)
     iterated = as_flag(iterated, "iterated")
+    max_iter = as_int(max_iter, "max_iter", minimum=1)
+    tol = as_scalar(tol, "tol", allow_zero=True)
     x, P = scenario.x0.copy(), scenario.P0.copy()
     N = len(scenario.t)
     xs, Ps, its = np.empty((N, 4)), np.empty((N, 4, 4)), np.ones(N, dtype=int)
@@ -298,8 +303,6 @@ def runs_over_seeds(seeds, *, iterated=False, sigma_a=2.0, name="turns", **scena
     list of BeaconResult
         One per seed; ``np.array([r.nees for r in runs])`` is the (n_seeds, N) NEES record.
     """
-    seeds = [as_seed(s) for s in seeds]
-    if not seeds:
-        raise ValueError("seeds must name at least one seed")
+    seeds = as_seeds(seeds)
     return [run_beacon_filter(kitti_beacons(name, seed, **scenario), iterated=iterated, sigma_a=sigma_a)
             for seed in seeds]

@@ -423,6 +423,8 @@ def earth_rotation(latitude_deg: float = KITTI_LATITUDE_DEG) -> EarthRotation:
         Latitude, degrees, in [−90, 90].
     """
     try:
+        if isinstance(latitude_deg, (bool, np.bool_, str, bytes)):     # float("49") and float(True) work
+            raise TypeError
         lat = float(latitude_deg)
     except (TypeError, ValueError):
         raise ValueError(f"latitude_deg must be a number of degrees in [-90, 90], got {latitude_deg!r}") from None

@@ -56,7 +56,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kalman_course.chapters.eskf_sources import REAL_INPUTS
-from kalman_course.core.validation import as_scalar, as_seed
+from kalman_course.core.validation import as_scalar, as_seeds
 from kalman_course.data import GaussMarkovErrors, WhiteErrors, load_kitti, simulate_lidar_poses
 from kalman_course.evaluation import metrics
 from kalman_course.evaluation.pose import evaluate
@@ -335,16 +335,6 @@ def _as_remedies(values) -> tuple:
     return tuple(r for r in REMEDIES if r in chosen)
 
 
-def _as_seeds(values) -> tuple:
-    try:
-        seeds = tuple(as_seed(s) for s in values)
-    except TypeError:
-        raise ValueError(f"seeds must be a sequence of non-negative integers, got {values!r}") from None
-    if not seeds:
-        raise ValueError("seeds must hold at least one seed")
-    return seeds
-
-
 def _error_model(sigma_position: float, sigma_attitude_deg: float, time_constant: float):
     if time_constant == 0.0:
         return WhiteErrors(sigma_position, sigma_attitude_deg)
@@ -402,7 +392,7 @@ def coloured_noise(excerpt="cruise", time_constants=(0.0, 0.5, 1.0, 3.0), seeds=
     start = time.perf_counter()
     ex = _as_excerpt(excerpt)
     taus = _as_time_constants(time_constants)
-    seeds = _as_seeds(seeds)
+    seeds = as_seeds(seeds)
     remedies = _as_remedies(remedies)
     cfg = config if isinstance(config, EskfConfig) else load_config(config)
     sigma_p, sigma_deg = float(cfg.lidar_std[0]), float(np.rad2deg(cfg.lidar_std[3]))

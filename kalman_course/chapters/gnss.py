@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from kalman_course.core.validation import as_rows
 from kalman_course.data import load_kitti, simulate_gnss
 from kalman_course.evaluation.metrics import rmse as rmse_per_axis
 
@@ -30,6 +31,12 @@ def truth_at(name: str, t):
         Positions (m) in the excerpt's navigation frame.
     """
     truth = load_kitti(name).truth
+    t = as_rows(t, "t")
+    outside = (t < truth.t[0]) | (t > truth.t[-1])
+    if outside.any():
+        k = int(np.argmax(outside))
+        raise ValueError(f"t must lie inside the truth of {name!r}, [{truth.t[0]:.4f}, {truth.t[-1]:.4f}] s; "
+                         f"t[{k}] = {t[k]:.4f}")
     return np.column_stack([np.interp(t, truth.t, truth.position[:, i]) for i in range(3)])
 
 

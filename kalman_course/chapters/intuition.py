@@ -40,7 +40,7 @@ import sympy as sp
 from kalman_course import symbolic
 from kalman_course.core.angles import wrap_angle
 from kalman_course.core.gaussians import linear_map
-from kalman_course.core.validation import (as_covariance, as_matrix, as_real_array, as_scalar, as_seed,
+from kalman_course.core.validation import (as_covariance, as_matrix, as_real_array, as_scalar, as_seed, as_seeds,
                                            as_vector)
 from kalman_course.filters.ekf import iekf_update
 from kalman_course.filters.kf import innovation_covariance, kf_gain, kf_predict, kf_update, run_kf
@@ -218,16 +218,7 @@ def _check_rows_of_G(R, name: str, G: np.ndarray) -> None:
 
 def _seed_list(seeds) -> np.ndarray:
     """``seeds`` (a non-empty sequence of non-negative ints) as an int array; else a ValueError naming it."""
-    expected = "a non-empty sequence of non-negative integers"
-    if isinstance(seeds, (str, bytes)) or not np.iterable(seeds):
-        raise ValueError(f"seeds must be {expected}, got {seeds!r:.60}")
-    try:
-        out = np.array([as_seed(s) for s in seeds], dtype=int)
-    except ValueError:
-        raise ValueError(f"seeds must be {expected}, got {seeds!r:.60}") from None
-    if out.size == 0:
-        raise ValueError("seeds must name at least one seed")
-    return out
+    return np.array(as_seeds(seeds), dtype=int)
 
 
 def steady_state(F, Q, G, R, *, B=None, P0=None, rtol=1e-12, max_steps=100_000) -> SteadyState:

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from kalman_course.core.validation import as_covariance, as_int, as_matrix, as_scalar
 from kalman_course.evaluation import metrics
 from kalman_course.evaluation.consistency import innovation_whiteness
 from kalman_course.filters import kf
@@ -57,6 +58,20 @@ class TuningRow:
         return "overconfident" if self.nis > hi else "underconfident" if self.nis < lo else "consistent"
 
 
+def _as_runs(runs) -> list:
+    """``runs`` as a non-empty list of simulated runs (each with ``z`` and ``x``); else a ValueError."""
+    if isinstance(runs, (str, bytes)) or not np.iterable(runs):
+        raise ValueError(f"runs must be a sequence of simulated runs (CVTarget: z, x), got {type(runs).__name__}")
+    runs = list(runs)
+    if not runs:
+        raise ValueError("runs must hold at least one simulated run")
+    for i, run in enumerate(runs):
+        if not (hasattr(run, "z") and hasattr(run, "x")):
+            raise ValueError(f"runs[{i}] must be a simulated run with measurements z and truth x (a CVTarget), "
+                             f"got {type(run).__name__}")
+    return runs
+
+
 def innovation_tuning(runs, x0, P0, F, G, Q, R, *, skip: int = 10, max_lag: int = 5) -> TuningRow:
     """Filter every simulated run with one (Q, R) and test its innovations.
 
@@ -84,11 +99,14 @@ def innovation_tuning(runs, x0, P0, F, G, Q, R, *, skip: int = 10, max_lag: int 
     -------
     TuningRow
     """
-    if len(runs) == 0:
-        raise ValueError("runs must hold at least one simulated run")
-    if not isinstance(skip, (int, np.integer)) or skip < 0:
-        raise ValueError(f"skip must be a non-negative integer, got {skip!r}")
-    Q, R = np.asarray(Q, dtype=float), np.asarray(R, dtype=float)
+    runs = _as_runs(runs)
+    skip = as_int(skip, "skip", minimum=0)
+    G = as_matrix(G, "G")
+    Q = as_covariance(Q, "Q", psd=True)
+    R = as_covariance(R, "R", psd=True)
+    if R.shape != (G.shape[0], G.shape[0]):
+        raise ValueError(f"R must have shape ({G.shape[0]}, {G.shape[0]}), one row and column per row of G "
+                         f"{G.shape}, got {R.shape}")
     nis, tests, estimates, truths = [], [], [], []
     for run in runs:
         h = kf.run_kf(x0, P0, F, Q, G, R, run.z)
@@ -124,9 +142,12 @@ def sigma_for_unit_nis(runs, x0, P0, F, G, Q, *, lo: float = 1e-2, hi: float = 1
     float
         σ, in the units of the measurements.
     """
-    if not 0.0 < lo < hi:
+    lo, hi = as_scalar(lo, "lo"), as_scalar(hi, "hi")
+    if not lo < hi:
         raise ValueError(f"need 0 < lo < hi, got lo={lo!r}, hi={hi!r}")
-    m = np.asarray(G).shape[0]
+    iterations = as_int(iterations, "iterations", minimum=1)
+    runs = _as_runs(runs)
+    m = as_matrix(G, "G").shape[0]
 
     def excess(sigma):
         return innovation_tuning(runs, x0, P0, F, G, Q, sigma**2 * np.eye(m), skip=skip).nis - m
@@ -134,7 +155,7 @@ def sigma_for_unit_nis(runs, x0, P0, F, G, Q, *, lo: float = 1e-2, hi: float = 1
     if not (excess(lo) > 0.0 > excess(hi)):
         raise ValueError(f"the mean NIS does not cross {m} between sigma {lo:g} and {hi:g}: widen lo, hi")
     log_lo, log_hi = np.log(lo), np.log(hi)
-    for _ in range(int(iterations)):
+    for _ in range(iterations):
         mid = 0.5 * (log_lo + log_hi)
         if excess(np.exp(mid)) > 0.0:
             log_lo = mid

@@ -31,8 +31,8 @@ import numpy as np
 from kalman_course import symbolic
 from kalman_course.core.angles import wrap_angle
 from kalman_course.core.linalg import symmetrise
-from kalman_course.core.validation import (as_covariance, as_flag, as_path, as_real_array, as_rows, as_scalar,
-                                           as_seed, as_vector, require_file)
+from kalman_course.core.validation import (as_covariance, as_flag, as_int, as_path, as_real_array, as_rows,
+                                           as_scalar, as_seed, as_vector, require_file)
 from kalman_course.data.kitti import simulate_gnss
 from kalman_course.evaluation.metrics import nees, position_rmse, rmse
 from kalman_course.filters.ekf import (LIDAR_G, ekf_predict, ekf_update, iekf_update, lidar_observation,
@@ -619,8 +619,12 @@ def fuse_lidar_radar(scenario: CTRVScenario, sigma_a=None, sigma_yaw_acc=None, *
         If the time goes backwards between two rows (the message names both rows and
         times), for a bad process noise or an unknown model.
     """
+    if not isinstance(scenario, CTRVScenario):
+        raise ValueError(f"scenario must be a CTRVScenario (from ctrv_lidar_radar or read_udacity_log), "
+                         f"got {type(scenario).__name__}")
     if model not in ("ctrv", "cv"):
         raise ValueError(f"model must be 'ctrv' or 'cv', got {model!r}")
+    max_iter = as_int(max_iter, "max_iter", minimum=1)
     use_lidar, use_radar = as_flag(use_lidar, "use_lidar"), as_flag(use_radar, "use_radar")
     iterated, joseph = as_flag(iterated, "iterated"), as_flag(joseph, "joseph")
     sigma_a = scenario.sigma_a if sigma_a is None else as_scalar(sigma_a, "sigma_a", allow_zero=True)
@@ -798,6 +802,8 @@ def compare_cv_ctrv(seeds=range(20), tuning_seeds=(100, 101), *, scenario=figure
 
 def position_nees(result: FusionResult) -> np.ndarray:
     """NEES of the position [p_x, p_y] of a fusion run at every row, shape (N,) (2 dof)."""
+    if not isinstance(result, FusionResult):
+        raise ValueError(f"result must be a FusionResult (from fuse_lidar_radar), got {type(result).__name__}")
     return nees(result.x_hat[:, :2] - result.truth[:, :2], result.P_hat[:, :2, :2])
 
 
@@ -957,6 +963,9 @@ def kitti_acceleration(excerpt, interval: float = 1.0, step: float = 0.1) -> Kit
     KittiAcceleration
     """
     interval, step = as_scalar(interval, "interval"), as_scalar(step, "step")
+    if not hasattr(excerpt, "truth"):
+        raise ValueError(f"excerpt must be a KITTI excerpt with a truth trajectory (load_kitti(name)), "
+                         f"got {type(excerpt).__name__}")
     truth = excerpt.truth
     speed = np.hypot(truth.velocity[:, 0], truth.velocity[:, 1])
     along = np.gradient(speed, truth.t)

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from kalman_course import symbolic
-from kalman_course.core.validation import as_int, as_real_array, as_scalar, as_seed, as_vector
+from kalman_course.core.validation import as_flag, as_int, as_real, as_real_array, as_scalar, as_seed, as_vector
 from kalman_course.data import load_kitti
 from kalman_course.evaluation.metrics import position_rmse
 
@@ -65,6 +65,7 @@ def kitti_model_states(name: str, model: str, t=None, half_window: float = 0.5, 
     """
     _check_model(model)
     half_window = as_scalar(half_window, "half_window")
+    causal = as_flag(causal, "causal")
     ex = load_kitti(name)
     truth = ex.truth
     back, ahead = (2 * half_window, 0.0) if causal else (half_window, half_window)
@@ -187,6 +188,8 @@ def predicted_paths(name: str, t0: float, horizon: float, models=symbolic.MOTION
     paths : dict of str to ndarray, shape (n, 2)
         Predicted positions per model, m.
     """
+    t0, horizon = as_real(t0, "t0"), as_scalar(horizon, "horizon")
+    n, causal = as_int(n, "n", minimum=2), as_flag(causal, "causal")
     truth = load_kitti(name).truth
     steps = np.linspace(0.0, horizon, n)
     paths = {}

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from kalman_course.core.validation import as_seed
+from kalman_course.core.validation import as_seeds
 from kalman_course.filters import bayes
 
 __all__ = ["CorridorModel", "CalibrationResult", "corridor_trials"]
@@ -130,9 +130,12 @@ def corridor_trials(filter_model: CorridorModel, truth: CorridorModel, seeds, st
     -------
     CalibrationResult
     """
+    for name, model in (("filter_model", filter_model), ("truth", truth)):
+        if not isinstance(model, CorridorModel):
+            raise ValueError(f"{name} must be a CorridorModel, got {type(model).__name__}")
     if filter_model.n != truth.n:
         raise ValueError(f"filter_model and truth must have the same number of cells, got {filter_model.n} and {truth.n}")
-    seeds = [as_seed(s) for s in seeds]
+    seeds = as_seeds(seeds)
     if not seeds:
         raise ValueError("seeds must hold at least one seed")
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:

@@ -227,6 +227,24 @@ def as_seed(seed) -> int:
     return int(seed)
 
 
+def as_seeds(seeds, name: str = "seeds") -> tuple[int, ...]:
+    """Return ``seeds`` (a non-empty sequence of non-negative ints) as a tuple of ints.
+
+    A string, a single number, a bool or a float among them is a ValueError naming ``name``.
+    """
+    expected = "a non-empty sequence of non-negative integers"
+    if isinstance(seeds, (str, bytes)) or not np.iterable(seeds) or np.ndim(seeds) != 1:
+        raise ValueError(f"{name} must be {expected}, got {_short_repr(seeds)}")
+    out = []
+    for i, seed in enumerate(seeds):
+        if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+            raise ValueError(f"{name}[{i}] must be a non-negative integer, got {seed!r}")
+        out.append(int(seed))
+    if not out:
+        raise ValueError(f"{name} must be {expected}, got an empty one")
+    return tuple(out)
+
+
 def as_scalar(value, name: str, *, allow_zero: bool = False) -> float:
     """Return ``value`` as a finite positive float (or non-negative with ``allow_zero``)."""
     kind = "non-negative" if allow_zero else "positive"
