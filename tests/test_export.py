@@ -1,5 +1,6 @@
 """Instructor exports: derivations as LaTeX and Markdown, lectures as offline HTML."""
 
+import html
 import os
 import re
 import shutil
@@ -8,6 +9,7 @@ import subprocess
 import pytest
 
 from kalman_course.tooling import cli, export
+from kalman_course.tooling.notebooks import read_notebook
 
 from conftest import ROOT
 
@@ -107,6 +109,15 @@ def test_the_lectures_form_a_site_with_working_links(tmp_path):
         expected = ([titles[k - 1][0]] if k else []) + ["index.html"] + \
             ([titles[k + 1][0]] if k + 1 < len(titles) else [])
         assert links == expected and all((out / link).is_file() for link in links)
+        # the browser tab shows the page's heading, as the index does
+        assert html.unescape(re.search(r"<title>([^<]*)</title>", page).group(1)) == html.unescape(titles[k][1])
+
+
+def test_every_lecture_heading_reads_NN_dot_title():
+    # one style in the site index: "07 · Rotations …", never "07 — …"
+    for path in sorted((ROOT / "notebooks").glob("*.ipynb")):
+        title, _ = export.notebook_title_and_summary(read_notebook(path))
+        assert re.fullmatch(r"(\d\d|A\d) · \S.*", title), (path.name, title)
 
 
 def test_bad_format_is_refused(tmp_path, capsys):

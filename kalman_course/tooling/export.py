@@ -298,7 +298,9 @@ def export_notebooks_html(notebooks: list[Path], out_dir: str | Path, progress=N
              for name, path, nb in zip(names, notebooks, nbs)]
     written = []
     for i, (nb_path, nb) in enumerate(zip(notebooks, nbs)):
-        body, _ = exporter.from_notebook_node(nb, resources={"metadata": {"path": str(Path(nb_path).parent)}})
+        # "name" is what the template puts in <title> (the page's heading, as the index shows it)
+        body, _ = exporter.from_notebook_node(nb, resources={"metadata": {"path": str(Path(nb_path).parent),
+                                                                          "name": pages[i][1]}})
         # The template loads require.js from a CDN for widgets, which the lectures do not use.
         body = REMOTE_SCRIPT_RE.sub("", body)
         body = body.replace("MathJax.Hub.Config({", "MathJax.Hub.Config({\n" + MATHJAX_FONT_CONFIG, 1)
