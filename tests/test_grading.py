@@ -199,7 +199,8 @@ def test_review_flags_reach_table_summary_and_gradebook(tmp_path):
     flagged = grading.NotebookResult("a/01_x.ipynb", "alice", "01", flags=["cell c: imports `f` from `m`"],
                                      checks=[grading.CheckResult("f", "grader-f", 2, 2)])
     clean = grading.NotebookResult("b/01_x.ipynb", "bob", "01", checks=[grading.CheckResult("f", "grader-f", 2, 2)])
-    assert "review: 01_x.ipynb: cell c: imports `f` from `m`" in gradebook.format_table([flagged, clean])
+    # every learner's notebook has the same name: the line names the learner and the file
+    assert "review: alice (a/01_x.ipynb): cell c: imports `f` from `m`" in gradebook.format_table([flagged, clean])
     assert "flagged for review: 1" in gradebook.format_summary([flagged, clean])
     assert "flagged" not in gradebook.format_summary([clean])
     _write([flagged, clean], csv_path=tmp_path / "g.csv", feedback_dir=tmp_path / "fb")
@@ -265,3 +266,24 @@ def test_a_function_that_is_not_defined_is_told_as_such():
     assert "no cell of the notebook defines it" in grading._undefined(session, ["h"], cells, errors, labels)
     assert grading._undefined(LocalSession({"f": len}), ["f"], cells, errors, labels) == ""
 
+
+
+def test_grading_yourself_ends_with_the_hint_wrapped_and_the_next_step():
+    hint = ("CheckFailed: kf_predict: P is wrong. Hint: " + "the process noise enters through B " * 8).strip()
+    mine = grading.NotebookResult("exercises/03_kalman_filter.ipynb", "-", "03",
+                                  checks=[grading.CheckResult("kf_gain", "g1", 2, 2),
+                                          grading.CheckResult("kf_predict", "g2", 0, 2, hint)])
+    table = gradebook.format_table([mine])
+    assert "first failing check" in table and "learner" not in table
+    lines = table.splitlines()
+    assert lines[2].rstrip().endswith("kf_predict") and max(map(len, lines)) <= gradebook.CONSOLE_WIDTH
+    assert "03_kalman_filter.ipynb, kf_predict:" in lines and "  P is wrong. Hint: the process" in table
+    step = gradebook.next_step([mine], all_hints=False)
+    assert step.startswith("next: in exercises/03_kalman_filter.ipynb, fix kf_predict")
+    assert "--all-hints" in step and max(map(len, step.splitlines())) <= gradebook.CONSOLE_WIDTH
+    done = grading.NotebookResult("exercises/03_kalman_filter.ipynb", "-", "03",
+                                  checks=[grading.CheckResult("kf_gain", "g1", 2, 2)])
+    assert gradebook.next_step([done], all_hints=False) == "next: every core check passes"
+    # a class keeps the hint in its table and gets the class statistics instead
+    class_table = gradebook.format_table([grading.NotebookResult("a/03.ipynb", "alice", "03", checks=mine.checks)])
+    assert "first hint" in class_table and "kf_predict: P is wrong" in class_table

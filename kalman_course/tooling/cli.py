@@ -236,7 +236,9 @@ def _report(results, args, run=None, key=None) -> int:
 
     print()
     print(gradebook.format_table(results, every_hint=args.all_hints))
-    print(gradebook.format_summary(results))
+    # a learner grading their own work gets the next step; a class run, its statistics
+    print(gradebook.next_step(results, args.all_hints) if gradebook.grading_yourself(results)
+          else gradebook.format_summary(results))
     if run is None:
         roster = getattr(args, "roster", None) or [(r.learner, r.path) for r in results]
         run = gradebook.run_record(roster, sandbox=getattr(args, "sandbox_text", None) or "none", seed=args.seed,

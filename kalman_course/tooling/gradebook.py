@@ -24,6 +24,7 @@ import json
 import os
 import re
 import secrets
+import textwrap
 from collections import Counter, defaultdict
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -151,14 +152,48 @@ def progress_line(done: int, total: int, r: NotebookResult) -> str:
             f"({r.seconds:.1f} s)")
 
 
+#: Width the hints are wrapped to when a learner grades their own notebooks.
+CONSOLE_WIDTH = 100
+
+
+def grading_yourself(results: list[NotebookResult]) -> bool:
+    """True when no result has a learner: ``kalman-course grade`` on one's own notebooks."""
+    return all((r.learner or "-") == "-" for r in results)
+
+
+def _subject(r: NotebookResult) -> str:
+    """Whom a console line is about: the notebook's name when grading yourself, else the
+    learner and their file (every learner's notebook has the same name)."""
+    if (r.learner or "-") == "-":
+        return console_text(Path(r.path).name)
+    return f"{console_text(r.learner)} ({console_text(r.path)})"
+
+
+def _first_failed(r: NotebookResult):
+    return next((c for c in r.checks if c.points < c.possible and not c.challenge), None)
+
+
+def _wrapped(text: str, indent: str = "  ") -> str:
+    return textwrap.fill(text, CONSOLE_WIDTH, initial_indent=indent, subsequent_indent=indent,
+                         break_long_words=False, break_on_hyphens=False)
+
+
 def format_table(results: list[NotebookResult], every_hint: bool = False) -> str:
     """Return the points table printed by ``kalman-course grade`` (``every_hint``: also every
-    failed check with the first line of its message, notebook by notebook)."""
-    rows = [("learner", "chapter", "notebook", "points", "status", "first hint")]
+    failed check with the first line of its message, notebook by notebook).
+
+    Grading yourself, the table names each notebook's first failing check and its hint follows
+    the table, wrapped to :data:`CONSOLE_WIDTH` columns; for a class the hint is in the table."""
+    yourself = grading_yourself(results)
+    rows = [("learner", "chapter", "notebook", "points", "status",
+             "first failing check" if yourself else "first hint")]
     for r in results:
+        failed = _first_failed(r)
+        first = ((failed.check if failed else "") if yourself
+                 else _first_line(r.hint).removeprefix("CheckFailed: "))
         rows.append((console_text(r.learner or "-"), console_text(r.chapter) or "?", console_text(Path(r.path).name),
-                     r.points_text, console_text(r.status), _first_line(r.hint).removeprefix("CheckFailed: ")))
-    if all((r.learner or "-") == "-" for r in results):
+                     r.points_text, console_text(r.status), console_text(first)))
+    if yourself:
         rows = [row[1:] for row in rows]  # grading yourself: no learner column
     ncol = len(rows[0]) - 1
     widths = [max(len(row[i]) for row in rows) for i in range(ncol)]
@@ -169,18 +204,54 @@ def format_table(results: list[NotebookResult], every_hint: bool = False) -> str
     if any(r.challenge_possible for r in results):
         lines.append("(+a/b: the optional challenges' points, counted apart from the core)")
     for r in results:
-        name = console_text(Path(r.path).name)
+        name = _subject(r)
         if r.tampered or r.readded:
             lines.append(f"note: {name}: grader cells restored "
                          f"(edited: {', '.join(map(console_text, r.tampered)) or 'none'}; "
                          f"re-added: {', '.join(map(console_text, r.readded)) or 'none'})")
         lines += [f"review: {name}: {console_text(flag)}" for flag in r.flags]
     if every_hint:
-        lines += _every_hint(results)
+        lines += _every_hint(results, wrap=yourself)
+    elif yourself:
+        lines += _first_hints(results)
     return "\n".join(lines)
 
 
-def _every_hint(results: list[NotebookResult]) -> list[str]:
+def _first_hints(results: list[NotebookResult]) -> list[str]:
+    """Each notebook's first failing check and its hint, wrapped (grading yourself)."""
+    lines = []
+    for r in results:
+        failed = _first_failed(r)
+        if failed is None and not r.hint:
+            continue
+        text = _first_line(failed.message if failed else r.hint).removeprefix("CheckFailed: ")
+        head = f"{console_text(Path(r.path).name)}, {console_text(failed.check)}:" if failed else \
+            f"{console_text(Path(r.path).name)}:"
+        lines += ["", head, _wrapped(console_text(text).removeprefix(f"{failed.check}: " if failed else ""))]
+    return lines
+
+
+def next_step(results: list[NotebookResult], all_hints: bool) -> str:
+    """What to do next, for a learner grading their own notebooks (instead of class statistics)."""
+    todo = [r for r in results if r.points < r.possible or r.status not in RAN_TO_THE_END]
+    if not todo:
+        return "next: every core check passes" + (
+            "; the optional challenges are there when you want more" if any(
+                r.challenge_points < r.challenge_possible for r in results) else "")
+    r = todo[0]
+    failed = _first_failed(r)
+    where = console_text(r.path)
+    if failed is None:
+        return textwrap.fill(f"next: {where} was not graded ({console_text(r.status)}: see above); put that "
+                             "right, then grade it again", CONSOLE_WIDTH, subsequent_indent="      ",
+                             break_long_words=False, break_on_hyphens=False)
+    more = "" if all_hints else "; --all-hints lists every failing check and shows the formulas"
+    return textwrap.fill(f"next: in {where}, fix {console_text(failed.check)} (its hint is above), run its "
+                         f"grader cell again, then this command{more}", CONSOLE_WIDTH, subsequent_indent="      ",
+                         break_long_words=False, break_on_hyphens=False)
+
+
+def _every_hint(results: list[NotebookResult], wrap: bool = False) -> list[str]:
     lines = []
     for r in results:
         failed = [c for c in r.checks if c.points < c.possible]
@@ -190,7 +261,8 @@ def _every_hint(results: list[NotebookResult]) -> list[str]:
         lines.append(f"{console_text(Path(r.path).name)}{who}:")
         for c in failed:
             text, check = _first_line(c.message).removeprefix("CheckFailed: "), console_text(c.check)
-            lines.append(f"  {text}" if text.startswith(f"{check}:") else f"  {check}: {text}")
+            line = text if text.startswith(f"{check}:") else f"{check}: {text}"
+            lines.append(_wrapped(line) if wrap else f"  {line}")
     return lines
 
 
